@@ -1,0 +1,5 @@
+"""``python -m policylab`` runs the command line."""
+
+from policylab.cli.main import main
+
+main()

@@ -1,0 +1,48 @@
+"""Error and warning types raised by every layer of policylab.
+
+Every error a user can trigger with bad input is a subclass of :class:`PolicylabError`
+and of ``ValueError`` or ``TypeError``, and its message says what was expected, what
+was given, and where (named by label).
+"""
+
+from __future__ import annotations
+
+
+class PolicylabError(Exception):
+    """Base class of every error policylab raises on purpose."""
+
+
+class InvalidMDPError(PolicylabError, ValueError):
+    """A finite MDP's definition is malformed (dynamics, labels, gamma, shapes)."""
+
+
+class ShapeError(InvalidMDPError):
+    """Arrays given to a constructor have shapes that do not fit together."""
+
+
+class InvalidPolicyError(PolicylabError, ValueError):
+    """A policy does not fit its MDP (rows, probabilities, unavailable actions)."""
+
+
+class UnknownLabelError(PolicylabError, ValueError):
+    """A state or action label that the MDP does not have."""
+
+
+class InvalidActionError(PolicylabError, ValueError):
+    """An action that is not available in the current state was taken."""
+
+
+class UnknownProblemError(PolicylabError, ValueError):
+    """A built-in problem name that is not registered."""
+
+
+class InvalidArgumentError(PolicylabError, ValueError):
+    """A function argument outside its allowed range or of the wrong kind."""
+
+
+class CheckpointError(PolicylabError, ValueError):
+    """A checkpoint or saved file is missing, corrupt, or unsafe to load."""
+
+
+class NotConvergedWarning(UserWarning):
+    """An iterative method stopped at its iteration limit before converging."""

@@ -1,0 +1,39 @@
+"""Built-in problems: the notes' examples, textbook classics and generators.
+
+Each problem is a function returning a :class:`~policylab.FiniteMDP`; every one is also
+registered by name for the command line and as a Gymnasium id.
+"""
+
+from policylab.problems.notes import (
+    MOUNTAIN_GRID,
+    SLIPPERY_GRID,
+    mountain_gridworld,
+    mountain_gridworld_bad_policy,
+    recycling_robot,
+    recycling_robot_deterministic_policy,
+    recycling_robot_stochastic_policy,
+    slippery_gridworld,
+)
+from policylab.problems.registry import (
+    ProblemSpec,
+    get_problem,
+    list_problems,
+    problem,
+    register_problem,
+)
+
+__all__ = [
+    "MOUNTAIN_GRID",
+    "SLIPPERY_GRID",
+    "ProblemSpec",
+    "get_problem",
+    "list_problems",
+    "mountain_gridworld",
+    "mountain_gridworld_bad_policy",
+    "problem",
+    "recycling_robot",
+    "recycling_robot_deterministic_policy",
+    "recycling_robot_stochastic_policy",
+    "register_problem",
+    "slippery_gridworld",
+]

@@ -1,0 +1,89 @@
+"""The registry of built-in problems, shared by the API, the CLI and the Gymnasium ids.
+
+A problem is registered once with its builder; the command line names it by the
+builder's name with hyphens (``recycling_robot`` -> ``recycling-robot``) and Gymnasium
+knows it as ``policylab/<CamelName>-v0``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from policylab.exceptions import UnknownProblemError
+
+if TYPE_CHECKING:
+    from policylab.mdp.finite import FiniteMDP
+    from policylab.mdp.policy import Policy
+
+__all__ = ["ProblemSpec", "get_problem", "list_problems", "problem", "register_problem"]
+
+
+@dataclass(frozen=True)
+class ProblemSpec:
+    """A registered built-in problem.
+
+    Attributes:
+        name: Command-line name (hyphens).
+        builder: Function returning the :class:`FiniteMDP` (keyword parameters allowed).
+        description: One line for ``policylab problems``.
+        policies: Named policies of the problem: name -> function of the MDP.
+        max_episode_steps: Step limit of its Gymnasium env (needed by continuing tasks).
+        section: Where the problem comes from (notes section or textbook example).
+    """
+
+    name: str
+    builder: Callable[..., FiniteMDP]
+    description: str
+    policies: dict[str, Callable[[FiniteMDP], Policy]] = field(default_factory=dict)
+    max_episode_steps: int | None = None
+    section: str = ""
+
+    @property
+    def gym_id(self) -> str:
+        """The Gymnasium id, ``policylab/<CamelName>-v0``."""
+        camel = "".join(part.capitalize() for part in self.name.split("-"))
+        return f"policylab/{camel}-v0"
+
+
+_REGISTRY: dict[str, ProblemSpec] = {}
+
+
+def register_problem(
+    builder: Callable[..., FiniteMDP],
+    description: str,
+    *,
+    policies: dict[str, Callable[[FiniteMDP], Policy]] | None = None,
+    max_episode_steps: int | None = None,
+    section: str = "",
+) -> ProblemSpec:
+    """Register a built-in problem under its builder's name with hyphens."""
+    name = builder.__name__.replace("_", "-")
+    spec = ProblemSpec(name, builder, description, dict(policies or {}), max_episode_steps, section)
+    _REGISTRY[name] = spec
+    return spec
+
+
+def problem(name: str) -> ProblemSpec:
+    """The spec of a registered problem.
+
+    Raises:
+        UnknownProblemError: With the list of known names.
+    """
+    key = name.strip().lower().replace("_", "-")
+    if key not in _REGISTRY:
+        raise UnknownProblemError(
+            f"unknown problem {name!r}; known problems: {', '.join(sorted(_REGISTRY))}"
+        )
+    return _REGISTRY[key]
+
+
+def get_problem(name: str, **kwargs: Any) -> FiniteMDP:
+    """Build a registered problem by name, passing keyword arguments to its builder."""
+    return problem(name).builder(**kwargs)
+
+
+def list_problems() -> list[ProblemSpec]:
+    """Every registered problem, sorted by name."""
+    return [_REGISTRY[k] for k in sorted(_REGISTRY)]

@@ -81,6 +81,9 @@ class FiniteMDP:
         initial: (S,) start-state distribution (zero on terminal states).
         name: A short name for messages and displays.
         grid: How states map to grid cells, for grid-shaped problems; else None.
+        meta: Problem-specific facts for displays and figures (for example ``"x"``,
+            the abscissa of each state of a one-dimensional problem). Never read by
+            solvers or learners.
     """
 
     states: tuple[Hashable, ...]
@@ -95,6 +98,7 @@ class FiniteMDP:
     initial: NDArray[np.float64]
     name: str = "mdp"
     grid: GridLayout | None = field(default=None)
+    meta: Mapping[str, Any] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ validation
     def __post_init__(self) -> None:
@@ -384,6 +388,7 @@ class FiniteMDP:
         initial: Hashable | Mapping[Hashable, float] | None = None,
         name: str = "mdp",
         grid: GridLayout | None = None,
+        meta: Mapping[str, Any] | None = None,
     ) -> FiniteMDP:
         """Build an MDP from p(s', r | s, a) written as outcome lists, by label.
 
@@ -407,6 +412,7 @@ class FiniteMDP:
                 over the non-terminal states.
             name: A short name for messages.
             grid: Grid layout for grid-shaped problems.
+            meta: Problem-specific facts for displays (see the class docstring).
 
         Raises:
             InvalidMDPError: On any malformed entry, naming the state and action.
@@ -510,7 +516,7 @@ class FiniteMDP:
         return cls(
             states=tuple(states), actions=tuple(act_list), gamma=gamma, terminal=term,
             action_mask=mask, indptr=indptr, next_states=nxt_arr, probs=p_arr, rewards=r_arr,
-            initial=init, name=name, grid=grid,
+            initial=init, name=name, grid=grid, meta=dict(meta or {}),
         )
 
     @classmethod
@@ -526,6 +532,7 @@ class FiniteMDP:
         name: str = "mdp",
         states: Sequence[Hashable] | None = None,
         actions: Sequence[Hashable] | None = None,
+        meta: Mapping[str, Any] | None = None,
     ) -> FiniteMDP:
         """Build an MDP from transition and reward arrays (pymdptoolbox's convention).
 
@@ -543,6 +550,7 @@ class FiniteMDP:
             name: A short name for messages.
             states: Optional state labels (default 0..S-1).
             actions: Optional action labels (default 0..A-1).
+            meta: Problem-specific facts for displays (see the class docstring).
 
         Raises:
             ShapeError: If the shapes do not fit together (the message shows them).
@@ -609,6 +617,7 @@ class FiniteMDP:
         return cls(
             states=st, actions=ac, gamma=gamma, terminal=term, action_mask=mask, indptr=indptr,
             next_states=nxt, probs=probs, rewards=rewards, initial=init, name=name,
+            meta=dict(meta or {}),
         )
 
     @classmethod

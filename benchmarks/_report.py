@@ -21,7 +21,10 @@ HEADER = (
 
 def machine() -> str:
     """One line describing where a benchmark ran."""
-    return f"{platform.machine()}, Python {platform.python_version()}, NumPy {np.__version__}, {date.today()}"
+    return (
+        f"{platform.machine()}, Python {platform.python_version()}, "
+        f"NumPy {np.__version__}, {date.today()}"
+    )
 
 
 def write_section(name: str, command: str, body: str) -> None:
@@ -35,8 +38,14 @@ def write_section(name: str, command: str, body: str) -> None:
         f"<!-- {name}:start -->\n## {name}\n\nCommand: `{command}`  \nMachine: {machine()}\n\n"
         f"{body.strip()}\n<!-- {name}:end -->"
     )
-    pattern = re.compile(rf"<!-- {re.escape(name)}:start -->.*?<!-- {re.escape(name)}:end -->", re.S)
-    text = pattern.sub(lambda _: block, text) if pattern.search(text) else text.rstrip() + "\n\n" + block + "\n"
+    pattern = re.compile(
+        rf"<!-- {re.escape(name)}:start -->.*?<!-- {re.escape(name)}:end -->", re.S
+    )
+    text = (
+        pattern.sub(lambda _: block, text)
+        if pattern.search(text)
+        else text.rstrip() + "\n\n" + block + "\n"
+    )
     tmp = BENCHMARKS_MD.with_suffix(".md.tmp")
     tmp.write_text(text)
     tmp.replace(BENCHMARKS_MD)

@@ -15,7 +15,11 @@ def main() -> int:
     scripts = sorted(HERE.glob("bench_*.py"))
     failed = []
     for script in scripts:
-        if wanted and script.stem not in wanted and script.stem.removeprefix("bench_") not in wanted:
+        if (
+            wanted
+            and script.stem not in wanted
+            and script.stem.removeprefix("bench_") not in wanted
+        ):
             continue
         print(f"== {script.name}", flush=True)
         if subprocess.call([sys.executable, str(script)]) != 0:

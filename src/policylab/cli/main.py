@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> None:
     except SystemExit:
         raise
     except Exception as e:
-        import click
+        import click  # type: ignore[import-not-found,unused-ignore]
 
         if isinstance(e, click.ClickException):
             e.show()

@@ -11,7 +11,9 @@ from policylab.cli.common import console, fmt_label, load_problem, print_json
 
 
 def problems_command(
-    json_out: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
+    json_out: Annotated[
+        bool, typer.Option("--json", help="Print JSON instead of a table.")
+    ] = False,
 ) -> None:
     """List the built-in problems with a one-line description each."""
     from policylab.problems.registry import list_problems
@@ -20,8 +22,12 @@ def problems_command(
     if json_out:
         print_json(
             [
-                {"name": s.name, "description": s.description, "gym_id": s.gym_id,
-                 "policies": sorted(s.policies)}
+                {
+                    "name": s.name,
+                    "description": s.description,
+                    "gym_id": s.gym_id,
+                    "policies": sorted(s.policies),
+                }
                 for s in specs
             ]
         )
@@ -37,7 +43,9 @@ def problems_command(
 
 
 def show_command(
-    problem: Annotated[str, typer.Argument(help="Problem name (see `policylab problems`) or a Gymnasium id.")],
+    problem: Annotated[
+        str, typer.Argument(help="Problem name (see `policylab problems`) or a Gymnasium id.")
+    ],
     max_rows: Annotated[int, typer.Option(help="Show at most this many dynamics rows.")] = 200,
     json_out: Annotated[bool, typer.Option("--json", help="Print JSON instead of tables.")] = False,
 ) -> None:
@@ -49,10 +57,13 @@ def show_command(
                 "name": mdp.name,
                 "states": [fmt_label(s) for s in mdp.states],
                 "actions": [fmt_label(a) for a in mdp.actions],
-                "terminal": [fmt_label(s) for s, t in zip(mdp.states, mdp.terminal, strict=True) if t],
+                "terminal": [
+                    fmt_label(s) for s, t in zip(mdp.states, mdp.terminal, strict=True) if t
+                ],
                 "gamma": mdp.gamma,
                 "available_actions": {
-                    fmt_label(s): [fmt_label(a) for a in mdp.available_actions(s)] for s in mdp.states
+                    fmt_label(s): [fmt_label(a) for a in mdp.available_actions(s)]
+                    for s in mdp.states
                 },
                 "dynamics": [
                     {"s": fmt_label(s), "a": fmt_label(a), "p": p, "s_next": fmt_label(n), "r": r}
@@ -75,7 +86,12 @@ def show_command(
     st.add_column("P(S0 = s)", justify="right")
     for i, s in enumerate(mdp.states[:max_rows]):
         acts = ", ".join(fmt_label(a) for a in mdp.available_actions(s))
-        st.add_row(fmt_label(s), "terminal" if mdp.terminal[i] else "", acts or "-", f"{mdp.initial[i]:.3g}")
+        st.add_row(
+            fmt_label(s),
+            "terminal" if mdp.terminal[i] else "",
+            acts or "-",
+            f"{mdp.initial[i]:.3g}",
+        )
     console.print(st)
     dt = Table(title="One-step dynamics p(s', r | s, a)")
     for col in ("s", "a", "s'", "r", "p(s', r | s, a)"):
@@ -91,7 +107,7 @@ def show_command(
     console.print(dt)
     if mdp.n_outcomes > shown:
         console.print(f"[dim]... {mdp.n_outcomes - shown} more outcomes (raise --max-rows)[/]")
-    r = mdp.expected_reward
+    rsa = mdp.expected_reward
     et = Table(title="Expected reward r(s, a) = sum p(s', r | s, a) r")
     et.add_column("state", style="bold")
     for a in mdp.actions:
@@ -101,15 +117,17 @@ def show_command(
             continue
         et.add_row(
             fmt_label(s),
-            *[f"{r[i, j]:.4g}" if mdp.action_mask[i, j] else "-" for j in range(mdp.n_actions)],
+            *[f"{rsa[i, j]:.4g}" if mdp.action_mask[i, j] else "-" for j in range(mdp.n_actions)],
         )
     console.print(et)
     if mdp.grid is not None:
         console.print("[bold]Grid[/] (row 0 at the top):")
-        for row in range(mdp.grid.shape[0]):
+        for gr in range(mdp.grid.shape[0]):
             cells = []
-            for col in range(mdp.grid.shape[1]):
-                idx = mdp.grid.state_at((row, col))
-                kind = mdp.grid.kinds.get((row, col), "")
-                cells.append(f"{fmt_label(mdp.states[idx]) if idx is not None else '#'}:{kind}".ljust(18))
+            for gc in range(mdp.grid.shape[1]):
+                idx = mdp.grid.state_at((gr, gc))
+                kind = mdp.grid.kinds.get((gr, gc), "")
+                cells.append(
+                    f"{fmt_label(mdp.states[idx]) if idx is not None else '#'}:{kind}".ljust(18)
+                )
             console.print("  " + "".join(cells))

@@ -41,7 +41,9 @@ class TourContext:
 _SECTIONS: list[tuple[float, str, Callable[[TourContext], None]]] = []
 
 
-def tour_section(order: float, title: str) -> Callable[[Callable[[TourContext], None]], Callable[[TourContext], None]]:
+def tour_section(
+    order: float, title: str
+) -> Callable[[Callable[[TourContext], None]], Callable[[TourContext], None]]:
     """Register a tour section; sections run in increasing ``order``."""
 
     def deco(fn: Callable[[TourContext], None]) -> Callable[[TourContext], None]:
@@ -69,7 +71,9 @@ def _import_section_modules() -> None:
 
 
 def tour_command(
-    quick: Annotated[bool, typer.Option("--quick", help="A short version (about 10 seconds).")] = False,
+    quick: Annotated[
+        bool, typer.Option("--quick", help="A short version (about 10 seconds).")
+    ] = False,
     out: Annotated[Path, typer.Option(help="Where figures are written.")] = Path("runs/tour"),
     seed: Annotated[int, typer.Option(help="Seed of every random part of the tour.")] = 0,
 ) -> None:

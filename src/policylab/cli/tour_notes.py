@@ -45,7 +45,9 @@ def recycling_robot(ctx: TourContext) -> None:
                 table.add_row(str(s), str(a), str(n), f"{r:g}", f"{p:g}")
     c.print(table)
     c.print(f"A(high) = {mdp.available_actions('high')}, A(low) = {mdp.available_actions('low')}")
-    c.print(f"p(high, 4 | high, search) = {mdp.p('high', 4.0, 'high', 'search'):g} (the notes' example)")
+    c.print(
+        f"p(high, 4 | high, search) = {mdp.p('high', 4.0, 'high', 'search'):g} (the notes' example)"
+    )
     det = pl.problems.recycling_robot_deterministic_policy(mdp)
     sto = pl.problems.recycling_robot_stochastic_policy(mdp)
     c.print(f"deterministic policy: {det.to_dict()}")

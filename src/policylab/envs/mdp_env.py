@@ -46,11 +46,17 @@ class MDPEnv(gym.Env[np.int64, np.int64]):
         render_mode: str | None = None,
     ) -> None:
         if max_steps is not None and max_steps <= 0:
-            raise InvalidArgumentError(f"max_steps must be a positive integer or None; got {max_steps}")
+            raise InvalidArgumentError(
+                f"max_steps must be a positive integer or None; got {max_steps}"
+            )
         if invalid_action not in ("raise", "stay"):
-            raise InvalidArgumentError(f"invalid_action must be 'raise' or 'stay'; got {invalid_action!r}")
+            raise InvalidArgumentError(
+                f"invalid_action must be 'raise' or 'stay'; got {invalid_action!r}"
+            )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise InvalidArgumentError(f"render_mode must be one of {self.metadata['render_modes']}")
+            raise InvalidArgumentError(
+                f"render_mode must be one of {self.metadata['render_modes']}"
+            )
         self.mdp = mdp
         self.max_steps = max_steps
         self.invalid_action = invalid_action
@@ -68,7 +74,10 @@ class MDPEnv(gym.Env[np.int64, np.int64]):
         return self._state
 
     def _info(self) -> dict[str, Any]:
-        return {"action_mask": self._masks[self._state].copy(), "state": self.mdp.states[self._state]}
+        return {
+            "action_mask": self._masks[self._state].copy(),
+            "state": self.mdp.states[self._state],
+        }
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -112,7 +121,7 @@ class MDPEnv(gym.Env[np.int64, np.int64]):
         truncated = (not terminated) and self.max_steps is not None and self._t >= self.max_steps
         return np.int64(self._state), reward, terminated, bool(truncated), self._info()
 
-    def render(self) -> str | None:  # type: ignore[override]
+    def render(self) -> str | None:
         """Text rendering (``render_mode="ansi"``): the grid for grid problems, else the state."""
         if self.render_mode != "ansi":
             return None
@@ -130,7 +139,9 @@ class MDPEnv(gym.Env[np.int64, np.int64]):
                 elif kind == "wall" or s is None:
                     line += "#"
                 else:
-                    line += {"goal": "G", "mountain": "M", "start": "S", "cliff": "C"}.get(kind, ".")
+                    line += {"goal": "G", "mountain": "M", "start": "S", "cliff": "C"}.get(
+                        kind, "."
+                    )
             rows.append(line)
         return "\n".join(rows) + "\n"
 

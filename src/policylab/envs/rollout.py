@@ -103,7 +103,9 @@ def rollout(
     elif callable(policy):
         choose = policy
     else:
-        raise InvalidArgumentError(f"policy must be a Policy or a callable; got {type(policy).__name__}")
+        raise InvalidArgumentError(
+            f"policy must be a Policy or a callable; got {type(policy).__name__}"
+        )
     states: list[int] = []
     actions: list[int] = []
     rewards: list[float] = []
@@ -112,7 +114,10 @@ def rollout(
         mdp = env_or_mdp
         s = mdp.sample_initial(rng) if start is None else mdp.state_index(start)
         states.append(s)
-        labels: tuple[tuple[Hashable, ...] | None, tuple[Hashable, ...] | None] = (mdp.states, mdp.actions)
+        labels: tuple[tuple[Hashable, ...] | None, tuple[Hashable, ...] | None] = (
+            mdp.states,
+            mdp.actions,
+        )
         while not mdp.terminal[s]:
             if max_steps is not None and len(actions) >= max_steps:
                 truncated = True
@@ -144,6 +149,11 @@ def rollout(
                 terminated, truncated = bool(term), bool(trunc) and not term
                 break
     return Episode(
-        np.asarray(states, dtype=np.int64), np.asarray(actions, dtype=np.int64),
-        np.asarray(rewards, dtype=np.float64), terminated, truncated, labels[0], labels[1],
+        np.asarray(states, dtype=np.int64),
+        np.asarray(actions, dtype=np.int64),
+        np.asarray(rewards, dtype=np.float64),
+        terminated,
+        truncated,
+        labels[0],
+        labels[1],
     )

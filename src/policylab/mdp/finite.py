@@ -8,7 +8,6 @@ reward r(s, a) and the transition matrices are derived from the table on first u
 
 from __future__ import annotations
 
-
 from collections.abc import Hashable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -92,7 +91,7 @@ class FiniteMDP:
     terminal: NDArray[np.bool_]
     action_mask: NDArray[np.bool_]
     indptr: NDArray[np.int64]
-    next_states: NDArray[np.int32]
+    next_states: NDArray[np.integer[Any]]
     probs: NDArray[np.float64]
     rewards: NDArray[np.float64]
     initial: NDArray[np.float64]
@@ -105,7 +104,9 @@ class FiniteMDP:
         S, A = len(self.states), len(self.actions)
         object.__setattr__(self, "gamma", _check_gamma(self.gamma))
         if S == 0 or A == 0:
-            raise InvalidMDPError(f"an MDP needs at least one state and one action; got {S} and {A}")
+            raise InvalidMDPError(
+                f"an MDP needs at least one state and one action; got {S} and {A}"
+            )
         _index_of(self.states)
         _index_of(self.actions)
         term = np.asarray(self.terminal, dtype=bool)
@@ -125,7 +126,9 @@ class FiniteMDP:
             if arr.shape != (K,):
                 raise ShapeError(f"{what} must have shape ({K},) to match indptr; got {arr.shape}")
         if K and (nxt.min() < 0 or nxt.max() >= S):
-            raise InvalidMDPError(f"next-state indices must lie in [0, {S}); got {nxt.min()}..{nxt.max()}")
+            raise InvalidMDPError(
+                f"next-state indices must lie in [0, {S}); got {nxt.min()}..{nxt.max()}"
+            )
         mask = mask & ~term[:, None]
         counts = np.diff(indptr).reshape(S, A)
         object.__setattr__(self, "terminal", term)
@@ -144,10 +147,19 @@ class FiniteMDP:
             bad = self.states[int(np.flatnonzero(init * term)[0])]
             raise InvalidMDPError(f"initial distribution puts mass on terminal state {bad!r}")
         if abs(init.sum() - 1.0) > PROB_TOL * max(1.0, S**0.5):
-            raise InvalidMDPError(f"initial distribution sums to {init.sum():.6g}; it must sum to 1")
+            raise InvalidMDPError(
+                f"initial distribution sums to {init.sum():.6g}; it must sum to 1"
+            )
         object.__setattr__(self, "initial", init / init.sum())
-        for arr in (self.terminal, self.action_mask, self.indptr, self.next_states, self.probs,
-                    self.rewards, self.initial):
+        for arr in (
+            self.terminal,
+            self.action_mask,
+            self.indptr,
+            self.next_states,
+            self.probs,
+            self.rewards,
+            self.initial,
+        ):
             arr.flags.writeable = False
 
     def _check_probabilities(self, counts: NDArray[np.int64]) -> None:
@@ -159,13 +171,13 @@ class FiniteMDP:
             s, a = divmod(int(np.searchsorted(self.indptr, k, side="right") - 1), A)
             raise InvalidMDPError(
                 f"p(. | s={_fmt(self.states[s])}, a={_fmt(self.actions[a])}) has probability "
-                f"{probs[k]!r}; probabilities must be finite and >= 0"
+                f"{float(probs[k])!r}; probabilities must be finite and >= 0"
             )
         if not np.all(np.isfinite(rewards)):
             k = int(np.flatnonzero(~np.isfinite(rewards))[0])
             s, a = divmod(int(np.searchsorted(self.indptr, k, side="right") - 1), A)
             raise InvalidMDPError(
-                f"reward {rewards[k]!r} in p(. | s={_fmt(self.states[s])}, "
+                f"reward {float(rewards[k])!r} in p(. | s={_fmt(self.states[s])}, "
                 f"a={_fmt(self.actions[a])}) is not finite"
             )
         bad_term = term & (counts.sum(axis=1) > 0)
@@ -189,16 +201,17 @@ class FiniteMDP:
                 f"non-terminal state {_fmt(self.states[s])} has no available action; give it "
                 "an action or mark it terminal"
             )
-        sums = np.zeros(S * A)
-        if len(probs):
-            rows = np.repeat(np.arange(S * A), np.diff(self.indptr))
-            sums = np.bincount(rows, weights=probs, minlength=S * A)
+        rows = np.repeat(np.arange(S * A), np.diff(self.indptr))
+        sums: NDArray[np.float64] = np.bincount(rows, weights=probs, minlength=S * A).astype(
+            np.float64
+        )
         bad = mask.ravel() & (np.abs(sums - 1.0) > PROB_TOL)
         if np.any(bad):
             s, a = divmod(int(np.flatnonzero(bad)[0]), A)
             raise InvalidMDPError(
                 f"p(. | s={_fmt(self.states[s])}, a={_fmt(self.actions[a])}) sums to "
-                f"{sums[s * A + a]:.6g}; each (state, action) must sum to 1 (tolerance {PROB_TOL:g})"
+                f"{sums[s * A + a]:.6g}; each (state, action) must sum to 1 "
+                f"(tolerance {PROB_TOL:g})"
             )
 
     # ------------------------------------------------------------------ sizes, labels
@@ -271,7 +284,10 @@ class FiniteMDP:
         ]
 
     def p(self, next_state: Hashable, reward: float, state: Hashable, action: Hashable) -> float:
-        """p(s', r | s, a), the one-step dynamics of the notes' equation in section 4.3.1."""
+        """One-step dynamics: probability of next state s' and reward r after (s, a), by labels.
+
+        This is the notes' p(s', r | s, a) of section 4.3.1.
+        """
         sp_ = self.state_index(next_state)
         return float(
             sum(
@@ -283,17 +299,18 @@ class FiniteMDP:
 
     # ------------------------------------------------------------------ derived views
     @cached_property
-    def _row_of_outcome(self) -> NDArray[np.int64]:
+    def _row_of_outcome(self) -> NDArray[np.intp]:
         return np.repeat(np.arange(self.n_states * self.n_actions), np.diff(self.indptr))
 
     @cached_property
     def expected_reward(self) -> NDArray[np.float64]:
         """r(s, a) = sum_{s', r} p(s', r | s, a) r, as an (S, A) array (0 where unavailable)."""
-        r = np.bincount(
+        flat = np.bincount(
             self._row_of_outcome,
             weights=self.probs * self.rewards,
             minlength=self.n_states * self.n_actions,
-        ).reshape(self.n_states, self.n_actions)
+        )
+        r = np.asarray(flat, dtype=np.float64).reshape(self.n_states, self.n_actions)
         r.flags.writeable = False
         return r
 
@@ -336,7 +353,9 @@ class FiniteMDP:
             from policylab.exceptions import InvalidActionError
 
             if self.terminal[s]:
-                raise InvalidActionError(f"state {self.states[s]!r} is terminal; no action can be taken")
+                raise InvalidActionError(
+                    f"state {self.states[s]!r} is terminal; no action can be taken"
+                )
             raise InvalidActionError(
                 f"action {self.actions[a]!r} is not available in state {self.states[s]!r}; "
                 f"A(s) = {self.available_actions(self.states[s])}"
@@ -371,8 +390,15 @@ class FiniteMDP:
         return int(
             sum(
                 a.nbytes
-                for a in (self.indptr, self.next_states, self.probs, self.rewards,
-                          self.terminal, self.action_mask, self.initial)
+                for a in (
+                    self.indptr,
+                    self.next_states,
+                    self.probs,
+                    self.rewards,
+                    self.terminal,
+                    self.action_mask,
+                    self.initial,
+                )
             )
         )
 
@@ -440,7 +466,8 @@ class FiniteMDP:
             for s, acts in dynamics.items():
                 if not isinstance(acts, Mapping):
                     raise InvalidMDPError(
-                        f"dynamics[{s!r}] must map actions to outcome lists; got {type(acts).__name__}"
+                        f"dynamics[{s!r}] must map actions to outcome lists; "
+                        f"got {type(acts).__name__}"
                     )
                 for a in acts:
                     if a not in seen:
@@ -458,7 +485,8 @@ class FiniteMDP:
             s = s_index[s_lab]
             if not isinstance(acts, Mapping):
                 raise InvalidMDPError(
-                    f"dynamics[{s_lab!r}] must map actions to outcome lists; got {type(acts).__name__}"
+                    f"dynamics[{s_lab!r}] must map actions to outcome lists; "
+                    f"got {type(acts).__name__}"
                 )
             for a_lab, outs in acts.items():
                 if a_lab not in a_index:
@@ -514,9 +542,19 @@ class FiniteMDP:
                 nxt_arr[lo + j], r_arr[lo + j], p_arr[lo + j] = nxt, r_f, pr_f
         init = _initial_from(initial, states, s_index, term)
         return cls(
-            states=tuple(states), actions=tuple(act_list), gamma=gamma, terminal=term,
-            action_mask=mask, indptr=indptr, next_states=nxt_arr, probs=p_arr, rewards=r_arr,
-            initial=init, name=name, grid=grid, meta=dict(meta or {}),
+            states=tuple(states),
+            actions=tuple(act_list),
+            gamma=gamma,
+            terminal=term,
+            action_mask=mask,
+            indptr=indptr,
+            next_states=nxt_arr,
+            probs=p_arr,
+            rewards=r_arr,
+            initial=init,
+            name=name,
+            grid=grid,
+            meta=dict(meta or {}),
         )
 
     @classmethod
@@ -573,11 +611,15 @@ class FiniteMDP:
         else:
             mask = np.asarray(action_mask, dtype=bool)
             if mask.shape != (S, A):
-                raise ShapeError(f"action_mask has shape {mask.shape}; expected (S, A) = ({S}, {A})")
+                raise ShapeError(
+                    f"action_mask has shape {mask.shape}; expected (S, A) = ({S}, {A})"
+                )
         mask = mask & ~term[:, None]
         r_kind, r_data = _reward_arrays(R, S, A)
         counts = np.zeros((S, A), dtype=np.int64)
-        per_action: list[tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]] = []
+        per_action: list[
+            tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]
+        ] = []
         for a, m in enumerate(mats):
             keep = mask[:, a]
             rows_keep = sp.diags_array(keep.astype(np.float64)).tocsr()
@@ -590,13 +632,19 @@ class FiniteMDP:
                 rew = np.asarray(r_data)[a][row_of, pa.indices]
             else:
                 ra = sp.csr_array(r_data[a])
-                rew = np.asarray(ra[row_of, pa.indices]).ravel()  # type: ignore[index]
-            per_action.append((pa.indptr.astype(np.int64), pa.indices.astype(np.int64),
-                               np.asarray(pa.data, dtype=np.float64), np.asarray(rew, dtype=np.float64)))
+                rew = np.asarray(ra[row_of, pa.indices]).ravel()
+            per_action.append(
+                (
+                    pa.indptr.astype(np.int64),
+                    pa.indices.astype(np.int64),
+                    np.asarray(pa.data, dtype=np.float64),
+                    np.asarray(rew, dtype=np.float64),
+                )
+            )
             counts[:, a] = np.diff(pa.indptr)
         indptr = np.concatenate([[0], np.cumsum(counts.ravel())])
         K = int(indptr[-1])
-        nxt = np.empty(K, dtype=np.int32 if S < 2**31 else np.int64)
+        nxt: NDArray[np.integer[Any]] = np.empty(K, dtype=np.int32 if S < 2**31 else np.int64)
         probs = np.empty(K)
         rewards = np.empty(K)
         for a, (ip, idx, data, rew) in enumerate(per_action):
@@ -615,8 +663,17 @@ class FiniteMDP:
         else:
             init = np.asarray(initial, dtype=np.float64)
         return cls(
-            states=st, actions=ac, gamma=gamma, terminal=term, action_mask=mask, indptr=indptr,
-            next_states=nxt, probs=probs, rewards=rewards, initial=init, name=name,
+            states=st,
+            actions=ac,
+            gamma=gamma,
+            terminal=term,
+            action_mask=mask,
+            indptr=indptr,
+            next_states=nxt,
+            probs=probs,
+            rewards=rewards,
+            initial=init,
+            name=name,
             meta=dict(meta or {}),
         )
 
@@ -627,8 +684,11 @@ class FiniteMDP:
         The env (or ``env.unwrapped``) must expose ``P[s][a] = [(prob, next_state,
         reward, terminated), ...]``. Duplicate outcomes are summed; a next state reached
         with ``terminated=True`` becomes a terminal state of the MDP (its own entries in
-        ``P`` are ignored). The start distribution is read from
-        ``initial_state_distrib`` where the env has one.
+        ``P`` are ignored). Reaching that state with ``terminated=False`` from a state
+        reachable from the start is refused as inconsistent; states that cannot be reached
+        (Taxi's "already delivered" states) are kept, and there a move into a terminal
+        state ends the episode. The start distribution is read from
+        ``initial_state_distrib`` where the env has one (else uniform over S).
 
         Args:
             env: A Gymnasium environment, or an id string for ``gymnasium.make``.
@@ -667,6 +727,29 @@ class FiniteMDP:
                         )
                     if out[3]:
                         terminal_set.add(int(out[1]))
+        init_d = getattr(base, "initial_state_distrib", None)
+        init_arr = np.asarray(init_d, dtype=np.float64) if init_d is not None else None
+        # A next state reached with terminated=True is terminal. A transition into it with
+        # terminated=False is a contradiction only where it can happen: from states reachable
+        # from the start (Taxi keeps unreachable "passenger already delivered" states).
+        reachable = np.zeros(S, dtype=bool)
+        frontier = (
+            [int(x) for x in np.flatnonzero(init_arr > 0)]
+            if init_arr is not None
+            else list(range(S))
+        )
+        for s0 in frontier:
+            reachable[s0] = True
+        while frontier:
+            s = int(frontier.pop())
+            if s in terminal_set:
+                continue
+            for a in range(len(P[s])):
+                for prob, nxt, _rew, _done in P[s][a]:
+                    n = int(nxt)
+                    if prob > 0 and not reachable[n]:
+                        reachable[n] = True
+                        frontier.append(n)
         dynamics: dict[int, dict[int, list[tuple[float, int, float]]]] = {}
         for s in range(S):
             if s in terminal_set:
@@ -677,7 +760,7 @@ class FiniteMDP:
                 for prob, nxt, rew, done in P[s][a]:
                     if prob == 0:
                         continue
-                    if int(nxt) in terminal_set and not done:
+                    if reachable[s] and int(nxt) in terminal_set and not done:
                         raise InvalidMDPError(
                             f"{env_id}: state {int(nxt)} is reached with terminated=True "
                             f"elsewhere but with terminated=False from P[{s}][{a}]"
@@ -688,15 +771,17 @@ class FiniteMDP:
         for t in sorted(terminal_set):
             dynamics[t] = {}
         order = list(range(S))
-        init_d = getattr(base, "initial_state_distrib", None)
         initial: Mapping[Hashable, float] | None = None
-        if init_d is not None:
-            init_arr = np.asarray(init_d, dtype=np.float64)
+        if init_arr is not None:
             initial = {s: float(init_arr[s]) for s in order if init_arr[s] > 0}
         ordered = {s: dynamics[s] for s in order}
         return cls.from_dynamics(
-            ordered, gamma=gamma, terminal=sorted(terminal_set), actions=list(range(A)),
-            initial=initial, name=name or str(env_id),
+            ordered,  # type: ignore[arg-type]
+            gamma=gamma,
+            terminal=sorted(terminal_set),
+            actions=list(range(A)),
+            initial=initial,
+            name=name or str(env_id),
         )
 
 
@@ -728,7 +813,9 @@ def _initial_from(
     try:
         init[s_index[initial]] = 1.0
     except (KeyError, TypeError):
-        raise UnknownLabelError(f"initial state {initial!r} is not a state; states are {_short(states)}") from None
+        raise UnknownLabelError(
+            f"initial state {initial!r} is not a state; states are {_short(states)}"
+        ) from None
     return init
 
 
@@ -736,10 +823,14 @@ def _as_matrix_list(P: Any) -> list[Any]:
     if isinstance(P, np.ndarray) or (not isinstance(P, (list, tuple)) and not sp.issparse(P)):
         arr = np.asarray(P, dtype=np.float64)
         if arr.ndim != 3:
-            raise ShapeError(f"P must be (A, S, S) or a list of A S x S matrices; got shape {arr.shape}")
+            raise ShapeError(
+                f"P must be (A, S, S) or a list of A S x S matrices; got shape {arr.shape}"
+            )
         return [arr[a] for a in range(arr.shape[0])]
     if sp.issparse(P):
-        raise ShapeError("P as one sparse matrix is ambiguous; pass a list of A sparse S x S matrices")
+        raise ShapeError(
+            "P as one sparse matrix is ambiguous; pass a list of A sparse S x S matrices"
+        )
     mats = []
     for a, m in enumerate(P):
         if sp.issparse(m):
@@ -788,5 +879,3 @@ def _reward_arrays(R: Any, S: int, A: int) -> tuple[str, Any]:
         f"R has shape {arr.shape}; expected (S, A) = ({S}, {A}) or (A, S, S) = ({A}, {S}, {S}) "
         f"to match P of {A} actions over {S} states"
     )
-
-

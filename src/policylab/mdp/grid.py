@@ -116,13 +116,17 @@ def grid_mdp(
     from policylab.mdp.finite import FiniteMDP
 
     if not rows or any(len(r) != len(rows[0]) for r in rows):
-        raise InvalidMDPError(f"grid rows must be non-empty and of equal length; got {list(rows)!r}")
+        raise InvalidMDPError(
+            f"grid rows must be non-empty and of equal length; got {list(rows)!r}"
+        )
     n_rows, n_cols = len(rows), len(rows[0])
     kinds: dict[Cell, str] = {}
     for r, line in enumerate(rows):
         for c, ch in enumerate(line):
             if ch not in legend:
-                raise InvalidMDPError(f"grid character {ch!r} at {(r, c)} is not in the legend {dict(legend)}")
+                raise InvalidMDPError(
+                    f"grid character {ch!r} at {(r, c)} is not in the legend {dict(legend)}"
+                )
             kinds[(r, c)] = legend[ch]
     cells = [cell for cell, k in kinds.items() if k != "wall"]
     mv = dict(moves) if moves is not None else dict(MOVES)
@@ -159,7 +163,7 @@ def grid_mdp(
                 acts[a_lab] = [(1.0, lab[dest], float(rew))]
                 continue
             outs = []
-            for pr, actual in (slip(a) if slip is not None else [(1.0, a)]):
+            for pr, actual in slip(a) if slip is not None else [(1.0, a)]:
                 to = land(cell, move_list[actual])
                 rew = float(reward(cell, to, kinds[to]))
                 dest = respawn.get(kinds[to], to)
@@ -169,10 +173,18 @@ def grid_mdp(
     starts = [lab[c] for c in cells if kinds[c] in set(start_kinds)]
     initial: Any = {s: 1.0 / len(starts) for s in starts} if starts else None
     layout = GridLayout(
-        shape=(n_rows, n_cols), cells=tuple(cells), kinds=kinds, thin_walls=walls,
+        shape=(n_rows, n_cols),
+        cells=tuple(cells),
+        kinds=kinds,
+        thin_walls=walls,
         moves=tuple(move_list),
     )
     return FiniteMDP.from_dynamics(
-        dynamics, gamma=gamma, terminal=terminal, actions=list(mv), initial=initial,
-        name=name, grid=layout,
+        dynamics,
+        gamma=gamma,
+        terminal=terminal,
+        actions=list(mv),
+        initial=initial,
+        name=name,
+        grid=layout,
     )

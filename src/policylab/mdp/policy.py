@@ -102,7 +102,9 @@ class Policy:
         """A deterministic policy from one action index per state (ignored on terminals)."""
         idx = np.asarray(actions, dtype=np.int64)
         if idx.shape != (mdp.n_states,):
-            raise InvalidPolicyError(f"expected {mdp.n_states} action indices; got shape {idx.shape}")
+            raise InvalidPolicyError(
+                f"expected {mdp.n_states} action indices; got shape {idx.shape}"
+            )
         probs = np.zeros((mdp.n_states, mdp.n_actions))
         live = ~mdp.terminal
         if np.any(live & ((idx < 0) | (idx >= mdp.n_actions))):
@@ -124,7 +126,7 @@ class Policy:
 
     def action_indices(self) -> NDArray[np.int64]:
         """The most probable action index of each state (-1 for terminal states)."""
-        out = self._probs.argmax(axis=1).astype(np.int64)
+        out: NDArray[np.int64] = self._probs.argmax(axis=1).astype(np.int64)
         out[self.terminal] = -1
         return out
 
@@ -154,7 +156,8 @@ class Policy:
         out: dict[str, dict[str, float]] = {}
         for s in np.flatnonzero(~self.terminal):
             out[str(self.states[s])] = {
-                str(self.actions[a]): float(self._probs[s, a]) for a in np.flatnonzero(self._probs[s])
+                str(self.actions[a]): float(self._probs[s, a])
+                for a in np.flatnonzero(self._probs[s])
             }
         return out
 
@@ -176,7 +179,9 @@ class Policy:
 
 def _as_mapping(x: Any, what: str) -> Mapping[Any, Any]:
     if not isinstance(x, Mapping):
-        raise InvalidPolicyError(f"{what} policy must be given as a mapping; got {type(x).__name__}")
+        raise InvalidPolicyError(
+            f"{what} policy must be given as a mapping; got {type(x).__name__}"
+        )
     return x
 
 
@@ -190,7 +195,9 @@ def _number(x: Any, what: str) -> float:
 def _validated(mdp: FiniteMDP, probs: NDArray[np.float64]) -> NDArray[np.float64]:
     S, A = mdp.n_states, mdp.n_actions
     if probs.shape != (S, A):
-        raise InvalidPolicyError(f"policy array has shape {probs.shape}; expected (S, A) = ({S}, {A})")
+        raise InvalidPolicyError(
+            f"policy array has shape {probs.shape}; expected (S, A) = ({S}, {A})"
+        )
     p = np.array(probs, dtype=np.float64)
     p[mdp.terminal] = 0.0
     live = ~mdp.terminal

@@ -18,9 +18,13 @@ def _rewards_and_gamma(rewards: ArrayLike, gamma: float) -> tuple[NDArray[np.flo
     try:
         r = np.asarray(rewards, dtype=np.float64)
     except (TypeError, ValueError):
-        raise InvalidArgumentError(f"rewards must be a sequence of numbers; got {rewards!r}") from None
+        raise InvalidArgumentError(
+            f"rewards must be a sequence of numbers; got {rewards!r}"
+        ) from None
     if r.ndim != 1:
-        raise InvalidArgumentError(f"rewards must be one-dimensional (R_1 .. R_T); got shape {r.shape}")
+        raise InvalidArgumentError(
+            f"rewards must be one-dimensional (R_1 .. R_T); got shape {r.shape}"
+        )
     if not np.all(np.isfinite(r)):
         raise InvalidArgumentError("rewards must be finite")
     g = float(gamma)

@@ -129,8 +129,14 @@ def mountain_gridworld_bad_policy(mdp: FiniteMDP) -> Policy:
     return Policy.deterministic(
         mdp,
         {
-            (2, 0): "right", (2, 1): "up", (1, 1): "up", (0, 1): "right", (0, 2): "down",
-            (1, 2): "down", (0, 0): "right", (1, 0): "down",
+            (2, 0): "right",
+            (2, 1): "up",
+            (1, 1): "up",
+            (0, 1): "right",
+            (0, 2): "down",
+            (1, 2): "down",
+            (0, 0): "right",
+            (1, 0): "down",
         },
     )
 
@@ -140,7 +146,10 @@ SLIPPERY_GRID = ((1, 4), (2, 3))
 
 
 def slippery_gridworld(
-    p_intended: float = 0.7, step_reward: float = -1.0, goal_reward: float = 10.0, gamma: float = 1.0
+    p_intended: float = 0.7,
+    step_reward: float = -1.0,
+    goal_reward: float = 10.0,
+    gamma: float = 1.0,
 ) -> FiniteMDP:
     """The notes' section 6 gridworld: four cells, a wall, and slippery moves.
 

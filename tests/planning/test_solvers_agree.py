@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import policylab as pl
-from policylab.planning import modified_policy_iteration
+from policylab.planning import linear_programming, modified_policy_iteration
 
 from .conftest import brute_force_optimum, dense_policy_value, small_random_mdp
 
@@ -43,6 +43,10 @@ def test_all_solvers_reach_the_brute_force_optimum(case: tuple[pl.FiniteMDP, flo
             pl.policy_iteration(mdp, evaluation="iterative", tol=1e-11),
             modified_policy_iteration(mdp, tol=tol, m=3),
         ]
+    lp = linear_programming(mdp)
+    scale = max(1.0, float(np.abs(v_star).max()))
+    assert np.allclose(lp.v, v_star, atol=1e-6 * scale)
+    assert np.allclose(dense_policy_value(mdp, lp.policy.probs, g), v_star, atol=1e-6 * scale)
     for res in results:
         assert res.converged
         scale = max(1.0, float(np.abs(v_star).max()))

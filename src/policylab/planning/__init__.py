@@ -29,23 +29,31 @@ from policylab.planning.control import (
 )
 from policylab.planning.evaluation import evaluate_policy, solve_policy_system
 from policylab.planning.result import PlanningResult
+from policylab.planning.special import (
+    backward_induction,
+    linear_programming,
+    relative_value_iteration,
+)
 
 __all__ = [
     "DEFAULT_TIE_TOL",
     "PlanningResult",
     "action_values",
+    "backward_induction",
     "bellman_expectation_backup",
     "bellman_optimality_backup",
     "compare_policies",
     "evaluate_policy",
     "greedy_actions",
     "greedy_policy",
+    "linear_programming",
     "modified_policy_iteration",
     "optimal_actions",
     "policy_iteration",
     "policy_reward",
     "policy_transition_matrix",
     "proper_policy",
+    "relative_value_iteration",
     "solve_policy_system",
     "state_values",
     "value_iteration",

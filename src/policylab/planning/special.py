@@ -1,5 +1,6 @@
-"""The other classical solvers: linear programming, finite-horizon backward induction and
-relative value iteration for the average-reward criterion (as in pymdptoolbox).
+"""Linear programming, finite-horizon backward induction and relative value iteration.
+
+These complete the classical solvers that pymdptoolbox offers.
 """
 
 from __future__ import annotations

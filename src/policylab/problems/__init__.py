@@ -4,6 +4,8 @@ Each problem is a function returning a :class:`~policylab.FiniteMDP`; every one 
 registered by name for the command line and as a Gymnasium id.
 """
 
+from policylab.problems.applications import forest_management, inventory_management
+from policylab.problems.generators import random_mdp
 from policylab.problems.notes import (
     MOUNTAIN_GRID,
     SLIPPERY_GRID,
@@ -21,16 +23,33 @@ from policylab.problems.registry import (
     problem,
     register_problem,
 )
+from policylab.problems.sutton_barto import (
+    gamblers_bold_policy,
+    gamblers_problem,
+    gridworld_4x4,
+    gridworld_5x5,
+    jacks_car_rental,
+    jacks_no_move_policy,
+)
 
 __all__ = [
     "MOUNTAIN_GRID",
     "SLIPPERY_GRID",
     "ProblemSpec",
+    "forest_management",
+    "gamblers_bold_policy",
+    "gamblers_problem",
     "get_problem",
+    "gridworld_4x4",
+    "gridworld_5x5",
+    "inventory_management",
+    "jacks_car_rental",
+    "jacks_no_move_policy",
     "list_problems",
     "mountain_gridworld",
     "mountain_gridworld_bad_policy",
     "problem",
+    "random_mdp",
     "recycling_robot",
     "recycling_robot_deterministic_policy",
     "recycling_robot_stochastic_policy",

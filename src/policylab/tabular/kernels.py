@@ -45,6 +45,7 @@ __all__ = [
     "KernelMDP",
     "epsilon_greedy_action",
     "epsilon_greedy_prob",
+    "exploring_start_state",
     "generate_episode",
     "greedy_action",
     "rand_below",
@@ -53,6 +54,7 @@ __all__ = [
     "sample_action",
     "sample_next",
     "sample_start",
+    "uniform_action",
 ]
 
 #: ``policy_kind`` codes of :func:`generate_episode`.
@@ -167,6 +169,43 @@ def sample_action(
     if count == 1:
         return first
     return _draw_from(pi_row, 0, n, state)
+
+
+@nb.njit(cache=True, nogil=True)
+def _n_available(mask_row: NDArray[np.bool_]) -> int:  # pragma: no cover - compiled
+    n = 0
+    for a in range(mask_row.shape[0]):
+        if mask_row[a]:
+            n += 1
+    return n
+
+
+@nb.njit(cache=True, nogil=True)
+def uniform_action(mask_row: NDArray[np.bool_], state: NDArray[np.uint64]) -> int:  # pragma: no cover
+    """A uniform action of A(s) (one draw)."""
+    k = rand_below(state, _n_available(mask_row))
+    for a in range(mask_row.shape[0]):
+        if mask_row[a]:
+            if k == 0:
+                return a
+            k -= 1
+    return -1
+
+
+@nb.njit(cache=True, nogil=True)
+def exploring_start_state(terminal: NDArray[np.bool_], state: NDArray[np.uint64]) -> int:  # pragma: no cover
+    """A uniform non-terminal state (one draw): S_0 of an exploring start."""
+    n_live = 0
+    for s in range(terminal.shape[0]):
+        if not terminal[s]:
+            n_live += 1
+    k = rand_below(state, n_live)
+    for s in range(terminal.shape[0]):
+        if not terminal[s]:
+            if k == 0:
+                return s
+            k -= 1
+    return -1
 
 
 @nb.njit(cache=True, nogil=True)
@@ -297,18 +336,7 @@ def generate_episode(
     n_actions = mask.shape[1]
     max_steps = buf_a.shape[0]
     if exploring_start:
-        n_live = 0
-        for s in range(terminal.shape[0]):
-            if not terminal[s]:
-                n_live += 1
-        k = rand_below(rng, n_live)
-        s = 0
-        for i in range(terminal.shape[0]):
-            if not terminal[i]:
-                if k == 0:
-                    s = i
-                    break
-                k -= 1
+        s = exploring_start_state(terminal, rng)
     else:
         s = sample_start(initial, rng)
     buf_s[0] = s
@@ -317,19 +345,8 @@ def generate_episode(
         if t >= max_steps:
             return -t
         if exploring_start and t == 0:
-            n_avail = 0
-            for a in range(n_actions):
-                if mask[s, a]:
-                    n_avail += 1
-            k = rand_below(rng, n_avail)
-            a = 0
-            for i in range(n_actions):
-                if mask[s, i]:
-                    if k == 0:
-                        a = i
-                        break
-                    k -= 1
-            b = 1.0 / n_avail
+            a = uniform_action(mask[s], rng)
+            b = 1.0 / _n_available(mask[s])
         elif policy_kind == FIXED_POLICY:
             a = sample_action(pi[s], rng)
             b = pi[s, a]

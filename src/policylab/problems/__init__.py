@@ -4,6 +4,7 @@ Each problem is a function returning a :class:`~policylab.FiniteMDP`; every one 
 registered by name for the command line and as a Gymnasium id.
 """
 
+from policylab.problems.blackjack import BLACKJACK_CARDS, blackjack, blackjack_stick_on_20_policy
 from policylab.problems.notes import (
     MOUNTAIN_GRID,
     SLIPPERY_GRID,
@@ -23,9 +24,12 @@ from policylab.problems.registry import (
 )
 
 __all__ = [
+    "BLACKJACK_CARDS",
     "MOUNTAIN_GRID",
     "SLIPPERY_GRID",
     "ProblemSpec",
+    "blackjack",
+    "blackjack_stick_on_20_policy",
     "get_problem",
     "list_problems",
     "mountain_gridworld",

@@ -29,7 +29,7 @@ rules.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numba as nb
 import numpy as np
@@ -55,6 +55,7 @@ __all__ = [
     "sample_next",
     "sample_start",
     "uniform_action",
+    "writable",
 ]
 
 #: ``policy_kind`` codes of :func:`generate_episode`.
@@ -181,7 +182,9 @@ def _n_available(mask_row: NDArray[np.bool_]) -> int:  # pragma: no cover - comp
 
 
 @nb.njit(cache=True, nogil=True)
-def uniform_action(mask_row: NDArray[np.bool_], state: NDArray[np.uint64]) -> int:  # pragma: no cover
+def uniform_action(
+    mask_row: NDArray[np.bool_], state: NDArray[np.uint64]
+) -> int:  # pragma: no cover
     """A uniform action of A(s) (one draw)."""
     k = rand_below(state, _n_available(mask_row))
     for a in range(mask_row.shape[0]):
@@ -193,7 +196,9 @@ def uniform_action(mask_row: NDArray[np.bool_], state: NDArray[np.uint64]) -> in
 
 
 @nb.njit(cache=True, nogil=True)
-def exploring_start_state(terminal: NDArray[np.bool_], state: NDArray[np.uint64]) -> int:  # pragma: no cover
+def exploring_start_state(
+    terminal: NDArray[np.bool_], state: NDArray[np.uint64]
+) -> int:  # pragma: no cover
     """A uniform non-terminal state (one draw): S_0 of an exploring start."""
     n_live = 0
     for s in range(terminal.shape[0]):
@@ -335,10 +340,7 @@ def generate_episode(
     """
     n_actions = mask.shape[1]
     max_steps = buf_a.shape[0]
-    if exploring_start:
-        s = exploring_start_state(terminal, rng)
-    else:
-        s = sample_start(initial, rng)
+    s = exploring_start_state(terminal, rng) if exploring_start else sample_start(initial, rng)
     buf_s[0] = s
     t = 0
     while not terminal[s]:
@@ -363,6 +365,16 @@ def generate_episode(
     return t
 
 
+def writable(x: Any, dtype: Any) -> NDArray[Any]:
+    """A C-contiguous, writable copy of ``x`` in ``dtype``.
+
+    Numba compiles a separate specialization for read-only arrays (a FiniteMDP's and a
+    Policy's arrays are read-only), so kernels are always handed writable copies: one
+    compiled version per kernel, cached on disk.
+    """
+    return np.array(x, dtype=dtype, order="C", copy=True)
+
+
 @dataclass(frozen=True)
 class KernelMDP:
     """The arrays of a :class:`FiniteMDP` in the dtypes the kernels take."""
@@ -380,12 +392,12 @@ class KernelMDP:
     def of(cls, mdp: FiniteMDP, gamma: float | None = None) -> KernelMDP:
         """The kernel view of an MDP (``gamma`` overrides the MDP's own)."""
         return cls(
-            np.ascontiguousarray(mdp.indptr, dtype=np.int64),
-            np.ascontiguousarray(mdp.next_states, dtype=np.int32),
-            np.ascontiguousarray(mdp.probs, dtype=np.float64),
-            np.ascontiguousarray(mdp.rewards, dtype=np.float64),
-            np.ascontiguousarray(mdp.terminal, dtype=np.bool_),
-            np.ascontiguousarray(mdp.action_mask, dtype=np.bool_),
-            np.ascontiguousarray(mdp.initial, dtype=np.float64),
+            writable(mdp.indptr, np.int64),
+            writable(mdp.next_states, np.int32),
+            writable(mdp.probs, np.float64),
+            writable(mdp.rewards, np.float64),
+            writable(mdp.terminal, np.bool_),
+            writable(mdp.action_mask, np.bool_),
+            writable(mdp.initial, np.float64),
             float(mdp.gamma if gamma is None else gamma),
         )

@@ -59,8 +59,8 @@ from policylab.tabular.kernels import (
     rng_states,
     sample_action,
     uniform_action,
+    writable,
 )
-from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule, schedule_value
 from policylab.tabular.truth import GroundTruth, greedy_probs
@@ -183,10 +183,7 @@ def mc_episode_update(
                 nv[s] += 1.0
                 v[s] += schedule_value(alpha, nv[s]) * (g - v[s])
             continue
-        if kind == 1:
-            rho = target[k] / buf_b[t]
-        else:
-            rho = 0.0
+        rho = target[k] / buf_b[t] if kind == 1 else 0.0
         w_v = w * rho
         if use_q:
             nq[k] += 1.0
@@ -265,8 +262,23 @@ def _mc_chunk(
     for k in range(k0, k1):
         eps = schedule_value(eps_params, k + 1.0)
         T = generate_episode(
-            indptr, next_states, probs, rewards, terminal, mask, initial, policy_kind, pi, q2,
-            eps, exploring_starts, rng, buf_s, buf_a, buf_r, buf_b,
+            indptr,
+            next_states,
+            probs,
+            rewards,
+            terminal,
+            mask,
+            initial,
+            policy_kind,
+            pi,
+            q2,
+            eps,
+            exploring_starts,
+            rng,
+            buf_s,
+            buf_a,
+            buf_r,
+            buf_b,
         )
         if T < 0:
             truncated += 1
@@ -276,8 +288,31 @@ def _mc_chunk(
         steps += T
         returns[k] = episode_return(buf_r, T, gamma)
         mc_episode_update(
-            kind, q, nq, cq, v, nv, cv, n_actions, buf_s, buf_a, buf_r, buf_b, T, gamma,
-            first_visit, alpha, weighted, target, mask, keys, flags_q, flags_v, mark_q, mark_v, k + 1,
+            kind,
+            q,
+            nq,
+            cq,
+            v,
+            nv,
+            cv,
+            n_actions,
+            buf_s,
+            buf_a,
+            buf_r,
+            buf_b,
+            T,
+            gamma,
+            first_visit,
+            alpha,
+            weighted,
+            target,
+            mask,
+            keys,
+            flags_q,
+            flags_v,
+            mark_q,
+            mark_v,
+            k + 1,
         )
     return steps, truncated
 
@@ -302,7 +337,7 @@ class _Tables:
 
     def grow(self, S: int) -> None:
         """Make room for S states (general path with a growing state index)."""
-        if S <= self.q.shape[0]:
+        if self.q.shape[0] >= S:
             return
         A = self.q.shape[1]
         self.q = grow_rows(self.q, S)
@@ -361,14 +396,17 @@ def _run(
     episodes = check_episodes(episodes)
     max_steps = check_episodes(max_steps, "max_steps")
     ckpts = checkpoint_episodes(episodes, checkpoints)
+    mdp: FiniteMDP | None
     if is_finite_mdp(problem):
-        mdp: FiniteMDP = problem
+        mdp = problem
         env = None
     else:
         env = _as_env(problem)
         mdp = model if model is not None else getattr(getattr(env, "unwrapped", env), "mdp", None)
         if start is not None:
-            raise InvalidArgumentError("start= is only supported on a FiniteMDP; reset the env instead")
+            raise InvalidArgumentError(
+                "start= is only supported on a FiniteMDP; reset the env instead"
+            )
     g = check_gamma(gamma, mdp.gamma if mdp is not None else 1.0)
     if mdp is not None and not mdp.terminal.any():
         raise InvalidArgumentError(
@@ -387,21 +425,49 @@ def _run(
     gen = np.random.default_rng(seed)
     rng = rng_states(gen, 1)[0]
     t0 = time.perf_counter()
-    if env is None:
+    if env is None and mdp is not None:
         tables, steps, truncated = _run_fast(
-            mdp, rec, returns, rng, kind=kind, gamma=g, policy=policy, policy_kind=policy_kind,
-            epsilon=epsilon, exploring_starts=exploring_starts, first_visit=first_visit, alpha=alpha,
-            weighted=weighted, target=target, max_steps=max_steps, start=start, progress=progress,
+            mdp,
+            rec,
+            returns,
+            rng,
+            kind=kind,
+            gamma=g,
+            policy=policy,
+            policy_kind=policy_kind,
+            epsilon=epsilon,
+            exploring_starts=exploring_starts,
+            first_visit=first_visit,
+            alpha=alpha,
+            weighted=weighted,
+            target=target,
+            max_steps=max_steps,
+            start=start,
+            progress=progress,
             name=algorithm,
         )
         index_labels: tuple[Hashable, ...] = mdp.states
-        seen = None
     else:
-        tables, steps, truncated, index_labels, seen = _run_env(
-            env, mdp, rec, returns, rng, gen, kind=kind, gamma=g, policy=policy,
-            policy_kind=policy_kind, epsilon=epsilon, exploring_starts=exploring_starts,
-            first_visit=first_visit, alpha=alpha, weighted=weighted, target=target,
-            max_steps=max_steps, progress=progress, name=algorithm,
+        tables, steps, truncated, index_labels = _run_env(
+            env,
+            mdp,
+            rec,
+            returns,
+            rng,
+            gen,
+            kind=kind,
+            gamma=g,
+            policy=policy,
+            policy_kind=policy_kind,
+            epsilon=epsilon,
+            exploring_starts=exploring_starts,
+            first_visit=first_visit,
+            alpha=alpha,
+            weighted=weighted,
+            target=target,
+            max_steps=max_steps,
+            progress=progress,
+            name=algorithm,
         )
     seconds = time.perf_counter() - t0
     S = len(index_labels)
@@ -415,7 +481,7 @@ def _run(
         terminal = np.zeros(S, dtype=bool)
         actions = tuple(range(q.shape[1]))
     q[~mask] = 0.0
-    if kind == AVERAGE and truth_kind == "prediction" or kind == IS_PREDICTION:
+    if (kind == AVERAGE and truth_kind == "prediction") or kind == IS_PREDICTION:
         v = tables.v[:S].copy()
     else:
         v = np.where(mask, q, -np.inf).max(axis=1)
@@ -473,18 +539,45 @@ def _run_fast(
     km = KernelMDP.of(mdp, gamma)
     S, A = mdp.n_states, mdp.n_actions
     tables = _Tables(S, A, max_steps)
-    pi = np.ascontiguousarray(policy.probs if policy_kind == FIXED_POLICY else np.zeros((S, A)))
-    tgt = np.ascontiguousarray(target.probs.ravel() if target is not None else np.zeros(S * A))
-    initial = start_state(mdp, start)
+    pi = writable(policy.probs if policy_kind == FIXED_POLICY else np.zeros((S, A)), np.float64)
+    tgt = writable(target.probs.ravel() if target is not None else np.zeros(S * A), np.float64)
+    initial = writable(start_state(mdp, start), np.float64)
     eps_p, alpha_p = epsilon.params, alpha.params
     steps = truncated = 0
     with progress_bar(progress, len(returns), name) as advance:
         for k0, k1 in rec.chunks():
             st, tr = _mc_chunk(
-                km.indptr, km.next_states, km.probs, km.rewards, km.terminal, km.mask, initial,
-                gamma, kind, policy_kind, pi, tables.q, eps_p, exploring_starts, first_visit,
-                alpha_p, weighted, tgt, tables.nq, tables.cq, tables.v, tables.nv, tables.cv, rng,
-                k0, k1, returns, tables.work_i, tables.work_f, tables.work_b, tables.mark_q,
+                km.indptr,
+                km.next_states,
+                km.probs,
+                km.rewards,
+                km.terminal,
+                km.mask,
+                initial,
+                gamma,
+                kind,
+                policy_kind,
+                pi,
+                tables.q,
+                eps_p,
+                exploring_starts,
+                first_visit,
+                alpha_p,
+                weighted,
+                tgt,
+                tables.nq,
+                tables.cq,
+                tables.v,
+                tables.nv,
+                tables.cv,
+                rng,
+                k0,
+                k1,
+                returns,
+                tables.work_i,
+                tables.work_f,
+                tables.work_b,
+                tables.mark_q,
                 tables.mark_v,
             )
             steps += st
@@ -538,7 +631,7 @@ def _run_env(
     max_steps: int,
     progress: bool,
     name: str,
-) -> tuple[_Tables, int, int, tuple[Hashable, ...], NDArray[np.bool_]]:
+) -> tuple[_Tables, int, int, tuple[Hashable, ...]]:
     """The general path: a plain Python loop over ``env.reset`` / ``env.step``.
 
     It calls the compiled action choice and :func:`mc_episode_update` with the same RNG
@@ -550,13 +643,12 @@ def _run_env(
             raise InvalidArgumentError(
                 f"the model {mdp.name!r} has {mdp.n_actions} actions but the env has {A}"
             )
-        base = getattr(env, "unwrapped", env)
-        index = (
-            StateIndex.discrete(mdp.n_states)
-            if getattr(base, "mdp", None) is mdp
-            else StateIndex.of_labels(mdp.states)
-        )
-        mask = np.ascontiguousarray(mdp.action_mask, dtype=np.bool_)
+        own_model = getattr(getattr(env, "unwrapped", env), "mdp", None) is mdp
+        if own_model:
+            index = StateIndex.discrete(mdp.n_states)
+        else:
+            index = StateIndex.of_labels(mdp.states)
+        mask = writable(mdp.action_mask, np.bool_)
     else:
         index = StateIndex.for_env(env)
         mask = np.ones((max(len(index), 1), A), dtype=np.bool_)
@@ -567,12 +659,18 @@ def _run_env(
         )
     S0 = max(len(index), 1)
     tables = _Tables(S0, A, max_steps)
-    pi_table = policy.probs if (policy_kind == FIXED_POLICY and hasattr(policy, "probs")) else None
-    tgt_flat = np.ascontiguousarray(target.probs.ravel()) if target is not None else np.zeros(S0 * A)
+    pi_table = (
+        writable(policy.probs, np.float64)
+        if (policy_kind == FIXED_POLICY and hasattr(policy, "probs"))
+        else None
+    )
+    tgt_flat = (
+        writable(target.probs.ravel(), np.float64) if target is not None else np.zeros(S0 * A)
+    )
     buf_s, buf_a, keys, buf_r, buf_b, flags_q, flags_v = tables.buffers()
     eps_p, alpha_p = epsilon.params, alpha.params
     seen = np.zeros(S0, dtype=bool)
-    terminal_ = np.asarray(mdp.terminal, dtype=np.bool_) if mdp is not None else None
+    terminal_ = writable(mdp.terminal, np.bool_) if mdp is not None else None
     env_seed: int | None = int(gen.integers(2**31 - 1))
     steps = truncated = 0
     with progress_bar(progress, len(returns), name) as advance:
@@ -587,7 +685,6 @@ def _run_env(
                 obs, _ = env.reset(seed=env_seed, options=options)
                 env_seed = None
                 t = 0
-                ended = False
                 while True:
                     s = index(obs)
                     if s >= len(seen):
@@ -596,8 +693,6 @@ def _run_env(
                         mask = grow_rows(mask, tables.q.shape[0], fill=True)
                     seen[s] = True
                     buf_s[t] = s
-                    if ended:
-                        break
                     if t >= max_steps:
                         t = -t
                         break
@@ -615,11 +710,8 @@ def _run_env(
                     buf_a[t], buf_r[t], buf_b[t] = a, float(r), b
                     t += 1
                     if term:
-                        ended = True
-                    elif trunc:
-                        s = index(obs)
-                        if s < len(seen):
-                            buf_s[t] = s
+                        break
+                    if trunc:
                         t = -t
                         break
                 T = t
@@ -631,14 +723,36 @@ def _run_env(
                 steps += T
                 returns[k] = episode_return(buf_r, T, gamma)
                 mc_episode_update(
-                    kind, tables.q.ravel(), tables.nq, tables.cq, tables.v, tables.nv, tables.cv,
-                    A, buf_s, buf_a, buf_r, buf_b, T, gamma, first_visit, alpha_p, weighted,
-                    tgt_flat, mask, keys, flags_q, flags_v, tables.mark_q, tables.mark_v, k + 1,
+                    kind,
+                    tables.q.ravel(),
+                    tables.nq,
+                    tables.cq,
+                    tables.v,
+                    tables.nv,
+                    tables.cv,
+                    A,
+                    buf_s,
+                    buf_a,
+                    buf_r,
+                    buf_b,
+                    T,
+                    gamma,
+                    first_visit,
+                    alpha_p,
+                    weighted,
+                    tgt_flat,
+                    mask,
+                    keys,
+                    flags_q,
+                    flags_v,
+                    tables.mark_q,
+                    tables.mark_v,
+                    k + 1,
                 )
             n = len(index)
             rec.record(tables.q[:n], tables.v[:n], seen[:n])
             advance(k1 - k0)
-    return tables, steps, truncated, index.labels, seen[: len(index)]
+    return tables, steps, truncated, index.labels
 
 
 def _policy_row(policy: Any, obs: Any, A: int) -> NDArray[np.float64]:
@@ -653,7 +767,9 @@ def _policy_row(policy: Any, obs: Any, A: int) -> NDArray[np.float64]:
 
 
 # =============================================================================== learners
-def _fixed_policy(problem: Any, policy: Any, model: FiniteMDP | None, what: str) -> tuple[Any, Policy | None]:
+def _fixed_policy(
+    problem: Any, policy: Any, model: FiniteMDP | None, what: str
+) -> tuple[Any, Policy | None]:
     """(policy for episode generation, Policy over the model for the ground truth)."""
     from policylab.mdp.policy import Policy
 
@@ -664,7 +780,8 @@ def _fixed_policy(problem: Any, policy: Any, model: FiniteMDP | None, what: str)
     if policy is None:
         if mdp is None:
             raise InvalidArgumentError(
-                f"{what}: give a policy (a function obs -> action probabilities) for an env without a model"
+                f"{what}: give a policy (a function obs -> action probabilities) for an env "
+                "without a model"
             )
         pol = Policy.uniform(mdp)
         return pol, pol
@@ -680,7 +797,9 @@ def _fixed_policy(problem: Any, policy: Any, model: FiniteMDP | None, what: str)
                 f"{what}: with a known model pass a policylab Policy (needed for the exact v_pi)"
             )
         return policy, None
-    raise InvalidPolicyError(f"{what}: policy must be a Policy or a callable; got {type(policy).__name__}")
+    raise InvalidPolicyError(
+        f"{what}: policy must be a Policy or a callable; got {type(policy).__name__}"
+    )
 
 
 def mc_prediction(
@@ -731,11 +850,28 @@ def mc_prediction(
     gen_policy, truth_policy = _fixed_policy(problem, policy, model, "mc_prediction")
     a = as_schedule(alpha, Schedule.inverse(), "alpha").check_range(0.0, 1.0, "alpha")
     return _run(
-        "mc-prediction", problem, kind=AVERAGE, episodes=episodes, seed=seed, gamma=gamma,
-        policy=gen_policy, policy_kind=FIXED_POLICY, epsilon=Schedule.constant(0.0),
-        exploring_starts=False, first_visit=bool(first_visit), alpha=a, weighted=False, target=None,
-        truth_kind="prediction", truth_policy=truth_policy, error_on=error_on,
-        checkpoints=checkpoints, max_steps=max_steps, start=start, progress=progress, model=model,
+        "mc-prediction",
+        problem,
+        kind=AVERAGE,
+        episodes=episodes,
+        seed=seed,
+        gamma=gamma,
+        policy=gen_policy,
+        policy_kind=FIXED_POLICY,
+        epsilon=Schedule.constant(0.0),
+        exploring_starts=False,
+        first_visit=bool(first_visit),
+        alpha=a,
+        weighted=False,
+        target=None,
+        truth_kind="prediction",
+        truth_policy=truth_policy,
+        error_on=error_on,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        start=start,
+        progress=progress,
+        model=model,
         params={"first_visit": bool(first_visit), "alpha": str(a)},
     )
 
@@ -793,13 +929,34 @@ def mc_control(
         eps = Schedule.constant(0.0)
     a = as_schedule(alpha, Schedule.inverse(), "alpha").check_range(0.0, 1.0, "alpha")
     return _run(
-        "mc-control", problem, kind=AVERAGE, episodes=episodes, seed=seed, gamma=gamma,
-        policy=None, policy_kind=EPSILON_GREEDY, epsilon=eps, exploring_starts=bool(exploring_starts),
-        first_visit=bool(first_visit), alpha=a, weighted=False, target=None, truth_kind="control",
-        truth_policy=None, error_on="q", checkpoints=checkpoints, max_steps=max_steps, start=start,
-        progress=progress, model=model,
-        params={"exploring_starts": bool(exploring_starts), "epsilon": str(eps), "alpha": str(a),
-                "first_visit": bool(first_visit)},
+        "mc-control",
+        problem,
+        kind=AVERAGE,
+        episodes=episodes,
+        seed=seed,
+        gamma=gamma,
+        policy=None,
+        policy_kind=EPSILON_GREEDY,
+        epsilon=eps,
+        exploring_starts=bool(exploring_starts),
+        first_visit=bool(first_visit),
+        alpha=a,
+        weighted=False,
+        target=None,
+        truth_kind="control",
+        truth_policy=None,
+        error_on="q",
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        start=start,
+        progress=progress,
+        model=model,
+        params={
+            "exploring_starts": bool(exploring_starts),
+            "epsilon": str(eps),
+            "alpha": str(a),
+            "first_visit": bool(first_visit),
+        },
     )
 
 
@@ -857,9 +1014,13 @@ def mc_off_policy(
     from policylab.mdp.policy import Policy
 
     if target is not None and not isinstance(target, Policy):
-        raise InvalidPolicyError(f"target must be a policylab Policy or None; got {type(target).__name__}")
+        raise InvalidPolicyError(
+            f"target must be a policylab Policy or None; got {type(target).__name__}"
+        )
     if target is not None and epsilon is not None:
-        raise InvalidArgumentError("epsilon (an epsilon-greedy behaviour) is for control; give behavior= instead")
+        raise InvalidArgumentError(
+            "epsilon (an epsilon-greedy behaviour) is for control; give behavior= instead"
+        )
     policy_kind = FIXED_POLICY
     eps = Schedule.constant(0.0)
     gen_policy: Any = None
@@ -875,16 +1036,34 @@ def mc_off_policy(
         elif target is None and isinstance(gen_policy, Policy):
             _check_soft(gen_policy)
     return _run(
-        "mc-off-policy", problem, kind=IS_PREDICTION if target is not None else IS_CONTROL,
-        episodes=episodes, seed=seed, gamma=gamma, policy=gen_policy, policy_kind=policy_kind,
-        epsilon=eps, exploring_starts=False, first_visit=bool(first_visit), alpha=Schedule.inverse(),
-        weighted=bool(weighted), target=target,
-        truth_kind="prediction" if target is not None else "control", truth_policy=target,
-        error_on=error_on if target is not None else "q", checkpoints=checkpoints,
-        max_steps=max_steps, start=start, progress=progress, model=model,
-        params={"weighted": bool(weighted), "first_visit": bool(first_visit),
-                "target": "greedy" if target is None else "given",
-                "behavior": f"epsilon-greedy {eps}" if epsilon is not None else "fixed"},
+        "mc-off-policy",
+        problem,
+        kind=IS_PREDICTION if target is not None else IS_CONTROL,
+        episodes=episodes,
+        seed=seed,
+        gamma=gamma,
+        policy=gen_policy,
+        policy_kind=policy_kind,
+        epsilon=eps,
+        exploring_starts=False,
+        first_visit=bool(first_visit),
+        alpha=Schedule.inverse(),
+        weighted=bool(weighted),
+        target=target,
+        truth_kind="prediction" if target is not None else "control",
+        truth_policy=target,
+        error_on=error_on if target is not None else "q",
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        start=start,
+        progress=progress,
+        model=model,
+        params={
+            "weighted": bool(weighted),
+            "first_visit": bool(first_visit),
+            "target": "greedy" if target is None else "given",
+            "behavior": f"epsilon-greedy {eps}" if epsilon is not None else "fixed",
+        },
     )
 
 

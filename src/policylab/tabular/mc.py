@@ -639,6 +639,7 @@ def _run_env(
     state as the fast path, so on a deterministic MDP both give the same numbers.
     """
     A = int(env.action_space.n)
+    own_model = False
     if mdp is not None:
         if mdp.n_actions != A:
             raise InvalidArgumentError(
@@ -751,7 +752,9 @@ def _run_env(
                     k + 1,
                 )
             n = len(index)
-            rec.record(tables.q[:n], tables.v[:n], seen[:n])
+            # an env over its own FiniteMDP can reach every state: score them all, as the
+            # compiled path does; with an outside model score only the states seen so far
+            rec.record(tables.q[:n], tables.v[:n], None if own_model else seen[:n])
             advance(k1 - k0)
     return tables, steps, truncated, index.labels
 

@@ -37,11 +37,31 @@ def test_model_is_valid_and_registered(bj):
 def test_optimal_policy_is_sutton_barto_figure_5_2(bj, optimum):
     """The published optimal policy (S&B Figure 5.2), dealer card A, 2, ..., 10."""
     book = {
-        True: {21: "S" * 10, 20: "S" * 10, 19: "S" * 10, 18: "HSSSSSSSHH", 17: "H" * 10,
-               16: "H" * 10, 15: "H" * 10, 14: "H" * 10, 13: "H" * 10, 12: "H" * 10},
-        False: {21: "S" * 10, 20: "S" * 10, 19: "S" * 10, 18: "S" * 10, 17: "S" * 10,
-                16: "HSSSSSHHHH", 15: "HSSSSSHHHH", 14: "HSSSSSHHHH", 13: "HSSSSSHHHH",
-                12: "HHHSSSHHHH", 11: "H" * 10},
+        True: {
+            21: "S" * 10,
+            20: "S" * 10,
+            19: "S" * 10,
+            18: "HSSSSSSSHH",
+            17: "H" * 10,
+            16: "H" * 10,
+            15: "H" * 10,
+            14: "H" * 10,
+            13: "H" * 10,
+            12: "H" * 10,
+        },
+        False: {
+            21: "S" * 10,
+            20: "S" * 10,
+            19: "S" * 10,
+            18: "S" * 10,
+            17: "S" * 10,
+            16: "HSSSSSHHHH",
+            15: "HSSSSSHHHH",
+            14: "HSSSSSHHHH",
+            13: "HSSSSSHHHH",
+            12: "HHHSSSHHHH",
+            11: "H" * 10,
+        },
     }
     acts = optimum.policy.action_indices()
     for usable, rows in book.items():
@@ -66,7 +86,9 @@ def test_example_5_4_value_and_ordinary_is_unbiased(bj):
     for i in range(runs):
         seed = int(rng.integers(2**63))
         for w in (False, True):
-            r = mc_off_policy(bj, target, weighted=w, episodes=1, seed=seed, start=start, score=False)
+            r = mc_off_policy(
+                bj, target, weighted=w, episodes=1, seed=seed, start=start, score=False
+            )
             est[w][i] = r.v[s0]
     ordinary = est[False]
     se = ordinary.std(ddof=1) / np.sqrt(runs)

@@ -180,7 +180,7 @@ def _make_command(spec: Any) -> Callable[..., None]:
         res = spec.learner(problem, **args)
         if plot is not None:
             try:
-                from policylab.plot import (  # type: ignore[attr-defined,unused-ignore]
+                from policylab.plot import (  # type: ignore[import-not-found,unused-ignore]
                     save_learning_figure,
                 )
             except ImportError:

@@ -56,7 +56,7 @@ def mc_prediction_grid(ctx: TourContext) -> None:
         f"from cell 1 against {v_pi[0]:.3f} ({pl.compare_policies(mdp, greedy, pi)})."
     )
     try:
-        from policylab.plot import save_learning_figure  # type: ignore[attr-defined,unused-ignore]
+        from policylab.plot import save_learning_figure  # type: ignore[import-not-found,unused-ignore]
     except ImportError:
         return
     path = ctx.out_dir / "mc_prediction_slippery.png"

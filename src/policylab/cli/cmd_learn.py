@@ -151,8 +151,9 @@ def _make_command(spec: Any) -> Callable[..., None]:
         json_out = kw.pop("json_out")
         plot = kw.pop("plot")
         max_rows = kw.pop("max_rows")
+        episodes = kw.pop("episodes")
         args: dict[str, Any] = {
-            "episodes": kw.pop("episodes") or spec.default_episodes,
+            "episodes": spec.default_episodes if episodes is None else episodes,
             "seed": kw.pop("seed"),
             "checkpoints": kw.pop("checkpoints"),
             "max_steps": kw.pop("max_steps"),

@@ -165,3 +165,13 @@ def test_json_contract(grid):
     assert sorted(d["states"]) == ["1", "2", "3", "4"] and len(d["q"]) == 4 and len(d["q"][0]) == 4
     assert set(d["error"]) == {"max", "rms", "optimal_actions"}
     assert "4" not in d["policy"] and len(d["episode_returns"]) == 100
+
+
+def test_run_seeds_equals_separate_runs(grid):
+    from policylab.tabular import run_seeds
+
+    many = run_seeds(mc_control, grid, [3, 4], episodes=500, workers=2)
+    for seed, res in zip([3, 4], many, strict=True):
+        np.testing.assert_array_equal(res.q, mc_control(grid, episodes=500, seed=seed).q)
+    with pytest.raises(InvalidArgumentError, match="FiniteMDP"):
+        run_seeds(mc_control, pl.MDPEnv(grid), 2, episodes=10)

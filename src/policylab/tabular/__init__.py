@@ -23,8 +23,9 @@ Layout
                outcome table, epsilon-greedy action choice, :func:`generate_episode`.
 ``truth``      :class:`GroundTruth`: exact v_pi/q_pi or v*/q* (from policylab.planning)
                and the error of an estimate (max, RMS, share of optimal greedy actions).
-``common``     argument checks, checkpoints, the :class:`~policylab.tabular.common.Recorder`
-               of the error curve, progress bars, the general path's ``StateIndex``.
+``common``     ``run_seeds`` (several seeds at once, on threads), argument checks,
+               checkpoints, the :class:`~policylab.tabular.common.Recorder` of the
+               error curve, progress bars, the general path's ``StateIndex``.
 ``result``     :class:`LearnResult`, the one result type (``to_json()`` is the CLI's
                ``--json``).
 ``registry``   the algorithm registry ``policylab learn ALGO PROBLEM`` reads.
@@ -58,7 +59,7 @@ How to add an algorithm (e.g. SARSA, in ``policylab/tabular/td.py``)
    ``kind="prediction"``) are added by the command.
 """
 
-from policylab.tabular.common import Recorder, StateIndex, checkpoint_episodes
+from policylab.tabular.common import Recorder, StateIndex, checkpoint_episodes, run_seeds
 from policylab.tabular.mc import mc_control, mc_off_policy, mc_prediction
 from policylab.tabular.registry import (
     AlgorithmSpec,
@@ -87,5 +88,6 @@ __all__ = [
     "mc_off_policy",
     "mc_prediction",
     "register_algorithm",
+    "run_seeds",
     "schedule_value",
 ]

@@ -241,17 +241,8 @@ def epsilon_greedy_action(
     Draws: one uniform u (skipped when epsilon is 0); if u < epsilon a uniform action
     of A(s); else a greedy action, ties broken uniformly (one more draw only if tied).
     """
-    n_avail = 0
-    for a in range(q_row.shape[0]):
-        if mask_row[a]:
-            n_avail += 1
     if epsilon > 0.0 and rand_uniform(state) < epsilon:
-        k = rand_below(state, n_avail)
-        for a in range(q_row.shape[0]):
-            if mask_row[a]:
-                if k == 0:
-                    return a
-                k -= 1
+        return uniform_action(mask_row, state)
     best_q = -np.inf
     n_best = 0
     for a in range(q_row.shape[0]):

@@ -5,6 +5,7 @@ registered by name for the command line and as a Gymnasium id.
 """
 
 from policylab.problems.applications import forest_management, inventory_management
+from policylab.problems.blackjack import BLACKJACK_CARDS, blackjack, blackjack_stick_on_20_policy
 from policylab.problems.generators import random_mdp
 from policylab.problems.notes import (
     MOUNTAIN_GRID,
@@ -33,9 +34,12 @@ from policylab.problems.sutton_barto import (
 )
 
 __all__ = [
+    "BLACKJACK_CARDS",
     "MOUNTAIN_GRID",
     "SLIPPERY_GRID",
     "ProblemSpec",
+    "blackjack",
+    "blackjack_stick_on_20_policy",
     "forest_management",
     "gamblers_bold_policy",
     "gamblers_problem",

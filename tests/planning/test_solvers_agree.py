@@ -104,3 +104,12 @@ def test_krylov_and_direct_evaluation_agree_on_a_larger_random_mdp() -> None:
     assert vi.error_bound is not None and vi.error_bound <= 1e-7
     assert np.max(np.abs(vi.v - res.v)) <= 1e-7
     assert np.array_equal(vi.policy.action_indices(), res.policy.action_indices())
+
+
+def test_krylov_at_gamma_one_does_not_accept_a_large_residual() -> None:
+    # Found by hypothesis: the gamma = 1 residual target once scaled with 1 / (1 - gamma).
+    mdp = small_random_mdp(337, 3, 3, 1.0, episodic=True)
+    krylov = pl.policy_iteration(mdp, solver="krylov")
+    direct = pl.policy_iteration(mdp, solver="direct")
+    assert np.allclose(krylov.v, direct.v, atol=1e-9)
+    assert krylov.residual < 1e-9

@@ -130,9 +130,14 @@ def solve_policy_system(
                 return np.asarray(y - gamma * (P @ y))
 
         op = spla.LinearOperator((S, S), matvec=mv, dtype=np.float64)
-        scale = float(np.abs(b).max(initial=0.0)) / max(1.0 - gamma, 1e-12)
-        target_err = tol if tol is not None else KRYLOV_RTOL * max(1.0, scale)
-        target_res = target_err * (1.0 - gamma) if gamma < 1.0 else target_err * 1e-3
+        r_max = float(np.abs(b).max(initial=0.0))
+        if gamma < 1.0:
+            # ||v - v_pi||_inf <= ||residual||_inf / (1 - gamma)
+            target_err = tol if tol is not None else KRYLOV_RTOL * max(1.0, r_max / (1 - gamma))
+            target_res = target_err * (1.0 - gamma)
+        else:
+            # no a-priori bound at gamma = 1: ask for a tiny relative residual instead
+            target_res = (tol if tol is not None else KRYLOV_RTOL) * 1e-2 * max(1.0, r_max)
         x, its, res = _gmres_refined(op, b, x0, target_res)
         if res <= target_res:
             info.update(

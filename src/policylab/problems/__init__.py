@@ -14,6 +14,16 @@ from policylab.problems.notes import (
     recycling_robot_stochastic_policy,
     slippery_gridworld,
 )
+from policylab.problems.td_examples import (
+    CLIFF_GRID,
+    WINDY_GRID,
+    WINDY_WIND,
+    cliff_walking,
+    maximization_bias,
+    random_walk,
+    random_walk_true_values,
+    windy_gridworld,
+)
 from policylab.problems.registry import (
     ProblemSpec,
     get_problem,
@@ -23,6 +33,14 @@ from policylab.problems.registry import (
 )
 
 __all__ = [
+    "CLIFF_GRID",
+    "WINDY_GRID",
+    "WINDY_WIND",
+    "cliff_walking",
+    "maximization_bias",
+    "random_walk",
+    "random_walk_true_values",
+    "windy_gridworld",
     "MOUNTAIN_GRID",
     "SLIPPERY_GRID",
     "ProblemSpec",

@@ -69,6 +69,20 @@ from policylab.tabular.registry import (
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, schedule_value
 from policylab.tabular.truth import GroundTruth, greedy_probs
+from policylab.tabular.td import (
+    SeedRuns,
+    double_q_learning,
+    dyna_q,
+    expected_sarsa,
+    n_step_sarsa,
+    n_step_td,
+    q_learning,
+    run_seeds,
+    sarsa,
+    sarsa_lambda,
+    td0,
+    td_lambda,
+)
 
 __all__ = [
     "AlgorithmSpec",
@@ -84,4 +98,17 @@ __all__ = [
     "list_algorithms",
     "register_algorithm",
     "schedule_value",
+    # temporal-difference learning (policylab.tabular.td)
+    "SeedRuns",
+    "double_q_learning",
+    "dyna_q",
+    "expected_sarsa",
+    "n_step_sarsa",
+    "n_step_td",
+    "q_learning",
+    "run_seeds",
+    "sarsa",
+    "sarsa_lambda",
+    "td0",
+    "td_lambda",
 ]

@@ -4,6 +4,7 @@ Each problem is a function returning a :class:`~policylab.FiniteMDP`; every one 
 registered by name for the command line and as a Gymnasium id.
 """
 
+from policylab.problems.blackjack import BLACKJACK_CARDS, blackjack, blackjack_stick_on_20_policy
 from policylab.problems.notes import (
     MOUNTAIN_GRID,
     SLIPPERY_GRID,
@@ -13,6 +14,13 @@ from policylab.problems.notes import (
     recycling_robot_deterministic_policy,
     recycling_robot_stochastic_policy,
     slippery_gridworld,
+)
+from policylab.problems.registry import (
+    ProblemSpec,
+    get_problem,
+    list_problems,
+    problem,
+    register_problem,
 )
 from policylab.problems.td_examples import (
     CLIFF_GRID,
@@ -24,34 +32,30 @@ from policylab.problems.td_examples import (
     random_walk_true_values,
     windy_gridworld,
 )
-from policylab.problems.registry import (
-    ProblemSpec,
-    get_problem,
-    list_problems,
-    problem,
-    register_problem,
-)
 
 __all__ = [
+    "BLACKJACK_CARDS",
     "CLIFF_GRID",
-    "WINDY_GRID",
-    "WINDY_WIND",
-    "cliff_walking",
-    "maximization_bias",
-    "random_walk",
-    "random_walk_true_values",
-    "windy_gridworld",
     "MOUNTAIN_GRID",
     "SLIPPERY_GRID",
+    "WINDY_GRID",
+    "WINDY_WIND",
     "ProblemSpec",
+    "blackjack",
+    "blackjack_stick_on_20_policy",
+    "cliff_walking",
     "get_problem",
     "list_problems",
+    "maximization_bias",
     "mountain_gridworld",
     "mountain_gridworld_bad_policy",
     "problem",
+    "random_walk",
+    "random_walk_true_values",
     "recycling_robot",
     "recycling_robot_deterministic_policy",
     "recycling_robot_stochastic_policy",
     "register_problem",
     "slippery_gridworld",
+    "windy_gridworld",
 ]

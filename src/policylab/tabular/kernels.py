@@ -29,7 +29,7 @@ rules.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numba as nb
 import numpy as np
@@ -45,6 +45,7 @@ __all__ = [
     "KernelMDP",
     "epsilon_greedy_action",
     "epsilon_greedy_prob",
+    "exploring_start_state",
     "generate_episode",
     "greedy_action",
     "rand_below",
@@ -53,6 +54,8 @@ __all__ = [
     "sample_action",
     "sample_next",
     "sample_start",
+    "uniform_action",
+    "writable",
 ]
 
 #: ``policy_kind`` codes of :func:`generate_episode`.
@@ -167,6 +170,47 @@ def sample_action(
     if count == 1:
         return first
     return _draw_from(pi_row, 0, n, state)
+
+
+@nb.njit(cache=True, nogil=True)
+def _n_available(mask_row: NDArray[np.bool_]) -> int:  # pragma: no cover - compiled
+    n = 0
+    for a in range(mask_row.shape[0]):
+        if mask_row[a]:
+            n += 1
+    return n
+
+
+@nb.njit(cache=True, nogil=True)
+def uniform_action(
+    mask_row: NDArray[np.bool_], state: NDArray[np.uint64]
+) -> int:  # pragma: no cover
+    """A uniform action of A(s) (one draw)."""
+    k = rand_below(state, _n_available(mask_row))
+    for a in range(mask_row.shape[0]):
+        if mask_row[a]:
+            if k == 0:
+                return a
+            k -= 1
+    return -1
+
+
+@nb.njit(cache=True, nogil=True)
+def exploring_start_state(
+    terminal: NDArray[np.bool_], state: NDArray[np.uint64]
+) -> int:  # pragma: no cover
+    """A uniform non-terminal state (one draw): S_0 of an exploring start."""
+    n_live = 0
+    for s in range(terminal.shape[0]):
+        if not terminal[s]:
+            n_live += 1
+    k = rand_below(state, n_live)
+    for s in range(terminal.shape[0]):
+        if not terminal[s]:
+            if k == 0:
+                return s
+            k -= 1
+    return -1
 
 
 @nb.njit(cache=True, nogil=True)
@@ -296,40 +340,15 @@ def generate_episode(
     """
     n_actions = mask.shape[1]
     max_steps = buf_a.shape[0]
-    if exploring_start:
-        n_live = 0
-        for s in range(terminal.shape[0]):
-            if not terminal[s]:
-                n_live += 1
-        k = rand_below(rng, n_live)
-        s = 0
-        for i in range(terminal.shape[0]):
-            if not terminal[i]:
-                if k == 0:
-                    s = i
-                    break
-                k -= 1
-    else:
-        s = sample_start(initial, rng)
+    s = exploring_start_state(terminal, rng) if exploring_start else sample_start(initial, rng)
     buf_s[0] = s
     t = 0
     while not terminal[s]:
         if t >= max_steps:
             return -t
         if exploring_start and t == 0:
-            n_avail = 0
-            for a in range(n_actions):
-                if mask[s, a]:
-                    n_avail += 1
-            k = rand_below(rng, n_avail)
-            a = 0
-            for i in range(n_actions):
-                if mask[s, i]:
-                    if k == 0:
-                        a = i
-                        break
-                    k -= 1
-            b = 1.0 / n_avail
+            a = uniform_action(mask[s], rng)
+            b = 1.0 / _n_available(mask[s])
         elif policy_kind == FIXED_POLICY:
             a = sample_action(pi[s], rng)
             b = pi[s, a]
@@ -344,6 +363,16 @@ def generate_episode(
         t += 1
         buf_s[t] = s
     return t
+
+
+def writable(x: Any, dtype: Any) -> NDArray[Any]:
+    """A C-contiguous, writable copy of ``x`` in ``dtype``.
+
+    Numba compiles a separate specialization for read-only arrays (a FiniteMDP's and a
+    Policy's arrays are read-only), so kernels are always handed writable copies: one
+    compiled version per kernel, cached on disk.
+    """
+    return np.array(x, dtype=dtype, order="C", copy=True)
 
 
 @dataclass(frozen=True)
@@ -363,12 +392,12 @@ class KernelMDP:
     def of(cls, mdp: FiniteMDP, gamma: float | None = None) -> KernelMDP:
         """The kernel view of an MDP (``gamma`` overrides the MDP's own)."""
         return cls(
-            np.ascontiguousarray(mdp.indptr, dtype=np.int64),
-            np.ascontiguousarray(mdp.next_states, dtype=np.int32),
-            np.ascontiguousarray(mdp.probs, dtype=np.float64),
-            np.ascontiguousarray(mdp.rewards, dtype=np.float64),
-            np.ascontiguousarray(mdp.terminal, dtype=np.bool_),
-            np.ascontiguousarray(mdp.action_mask, dtype=np.bool_),
-            np.ascontiguousarray(mdp.initial, dtype=np.float64),
+            writable(mdp.indptr, np.int64),
+            writable(mdp.next_states, np.int32),
+            writable(mdp.probs, np.float64),
+            writable(mdp.rewards, np.float64),
+            writable(mdp.terminal, np.bool_),
+            writable(mdp.action_mask, np.bool_),
+            writable(mdp.initial, np.float64),
             float(mdp.gamma if gamma is None else gamma),
         )

@@ -27,19 +27,7 @@ if TYPE_CHECKING:
     from policylab.mdp.finite import FiniteMDP
     from policylab.mdp.policy import Policy
 
-__all__ = ["GroundTruth", "best_action_mask", "greedy_probs"]
-
-#: Two exact action values closer than this (relative to their size) are tied.
-TIE_TOL = 1e-9
-
-
-def best_action_mask(q: NDArray[np.float64], mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """(S, A) mask of argmax_a q(s, a) over A(s), ties (within 1e-9 relative) included."""
-    qm = np.where(mask, q, -np.inf)
-    best = qm.max(axis=1, keepdims=True)
-    tol = TIE_TOL * np.maximum(1.0, np.abs(np.where(np.isfinite(best), best, 0.0)))
-    out: NDArray[np.bool_] = mask & (qm >= best - tol)
-    return out
+__all__ = ["GroundTruth", "greedy_probs"]
 
 
 def greedy_probs(q: NDArray[np.float64], mask: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -109,11 +97,12 @@ class GroundTruth:
     def _make(
         cls, mdp: FiniteMDP, target: str, v: NDArray[np.float64], q: NDArray[np.float64]
     ) -> GroundTruth:
+        from policylab.planning import optimal_actions
+
         mask = np.asarray(mdp.action_mask, dtype=bool)
         q = np.where(mask, q, 0.0)
-        return cls(
-            target, v, q, best_action_mask(q, mask), mask, ~np.asarray(mdp.terminal, dtype=bool)
-        )
+        live = ~np.asarray(mdp.terminal, dtype=bool)
+        return cls(target, v, q, optimal_actions(mdp, q), mask, live)
 
     def errors(
         self,

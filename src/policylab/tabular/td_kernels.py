@@ -392,6 +392,8 @@ def n_step_kernel(
                 if control and not terminated:
                     A_buf[(t + 1) % m] = epsilon_greedy_action(w[s2], mask[s2], epsilon, rng)
             tau = t - n + 1
+            if tau < 0 and t >= T - 1:  # the episode ended before n steps: skip idle t
+                t, tau = n - 1, 0
             if tau >= 0:
                 end = min(tau + n, T)
                 G, p = n_step_return(R_buf, tau, end, gamma)

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 import policylab as pl
-from policylab import tabular as T
-from policylab.tabular import td_kernels as K
+from policylab import tabular as tab
+from policylab.tabular import td_kernels as tdk
 
 
 @pytest.fixture(scope="module")
@@ -32,18 +32,18 @@ CONTROL = dict(episodes=60, alpha=0.5, epsilon=0.1, seed=7, checkpoints=3)
 @pytest.mark.parametrize("problem", ["cliff", "lake"])
 def test_n_step_sarsa_with_n_1_is_sarsa(problem, request):
     mdp = request.getfixturevalue(problem)
-    same(T.n_step_sarsa(mdp, n=1, **CONTROL), T.sarsa(mdp, **CONTROL))
+    same(tab.n_step_sarsa(mdp, n=1, **CONTROL), tab.sarsa(mdp, **CONTROL))
 
 
 @pytest.mark.parametrize("trace", ["accumulating", "replacing"])
 @pytest.mark.parametrize("problem", ["cliff", "lake"])
 def test_sarsa_lambda_with_lambda_0_is_sarsa(problem, trace, request):
     mdp = request.getfixturevalue(problem)
-    same(T.sarsa_lambda(mdp, lam=0.0, trace=trace, **CONTROL), T.sarsa(mdp, **CONTROL))
+    same(tab.sarsa_lambda(mdp, lam=0.0, trace=trace, **CONTROL), tab.sarsa(mdp, **CONTROL))
 
 
 def test_dyna_q_without_planning_is_q_learning(lake):
-    same(T.dyna_q(lake, planning_steps=0, **CONTROL), T.q_learning(lake, **CONTROL))
+    same(tab.dyna_q(lake, planning_steps=0, **CONTROL), tab.q_learning(lake, **CONTROL))
 
 
 PREDICTION = dict(episodes=40, alpha=0.1, init=0.5, seed=3, checkpoints=3)
@@ -51,13 +51,13 @@ PREDICTION = dict(episodes=40, alpha=0.1, init=0.5, seed=3, checkpoints=3)
 
 def test_n_step_td_with_n_1_is_td0():
     mdp = pl.problems.random_walk()
-    same(T.n_step_td(mdp, n=1, **PREDICTION), T.td0(mdp, **PREDICTION))
+    same(tab.n_step_td(mdp, n=1, **PREDICTION), tab.td0(mdp, **PREDICTION))
 
 
 @pytest.mark.parametrize("trace", ["accumulating", "replacing"])
 def test_td_lambda_with_lambda_0_is_td0(trace):
     mdp = pl.problems.random_walk()
-    same(T.td_lambda(mdp, lam=0.0, trace=trace, **PREDICTION), T.td0(mdp, **PREDICTION))
+    same(tab.td_lambda(mdp, lam=0.0, trace=trace, **PREDICTION), tab.td0(mdp, **PREDICTION))
 
 
 def test_n_step_td_with_long_n_is_constant_alpha_monte_carlo():
@@ -67,7 +67,7 @@ def test_n_step_td_with_long_n_is_constant_alpha_monte_carlo():
     from policylab.tabular.mc import mc_prediction
 
     mc = mc_prediction(mdp, episodes=50, alpha=0.03, first_visit=False, seed=4, error_on="v")
-    td = T.n_step_td(mdp, n=10_000, episodes=50, alpha=0.03, seed=4)
+    td = tab.n_step_td(mdp, n=10_000, episodes=50, alpha=0.03, seed=4)
     np.testing.assert_allclose(td.v, mc.v, rtol=0, atol=1e-15)
     np.testing.assert_array_equal(td.episode_returns, mc.episode_returns)
 
@@ -76,7 +76,7 @@ def test_td0_first_episode_by_hand():
     """alpha = 1 on the random walk: each update copies the target, so after one episode
     every visited state except the last holds the value of its successor at that time."""
     mdp = pl.problems.random_walk()
-    res = T.td0(mdp, episodes=1, alpha=1.0, init=0.5, seed=11, checkpoints=1)
+    res = tab.td0(mdp, episodes=1, alpha=1.0, init=0.5, seed=11, checkpoints=1)
     v = res.v
     last_reward = res.episode_returns[0]
     # The last state before termination copied the terminal reward.
@@ -92,43 +92,53 @@ def test_q_learning_greedy_episode_by_hand():
     hand-computed Bellman backup along the path."""
     mdp = pl.FiniteMDP.from_dynamics(
         {"s0": {"go": [(1.0, "s1", 1.0)]}, "s1": {"go": [(1.0, "end", 2.0)]}},
-        gamma=0.5, terminal=["end"], initial="s0",
+        gamma=0.5,
+        terminal=["end"],
+        initial="s0",
     )
-    res = T.q_learning(mdp, episodes=1, alpha=1.0, epsilon=0.0, seed=0, checkpoints=1)
+    res = tab.q_learning(mdp, episodes=1, alpha=1.0, epsilon=0.0, seed=0, checkpoints=1)
     np.testing.assert_array_equal(res.q[:, 0], [1.0, 2.0, 0.0])  # Q(s0) used Q(s1) = 0
-    res = T.q_learning(mdp, episodes=2, alpha=1.0, epsilon=0.0, seed=0, checkpoints=1)
+    res = tab.q_learning(mdp, episodes=2, alpha=1.0, epsilon=0.0, seed=0, checkpoints=1)
     np.testing.assert_array_equal(res.q[:, 0], [1.0 + 0.5 * 2.0, 2.0, 0.0])
     assert res.error["max"] == 0.0
-    res = T.expected_sarsa(mdp, episodes=2, alpha=1.0, epsilon=0.0, seed=0, checkpoints=1)
+    res = tab.expected_sarsa(mdp, episodes=2, alpha=1.0, epsilon=0.0, seed=0, checkpoints=1)
     np.testing.assert_array_equal(res.q[:, 0], [2.0, 2.0, 0.0])
-    res = T.n_step_sarsa(mdp, n=2, episodes=1, alpha=1.0, epsilon=0.0, seed=0, checkpoints=1)
+    res = tab.n_step_sarsa(mdp, n=2, episodes=1, alpha=1.0, epsilon=0.0, seed=0, checkpoints=1)
     np.testing.assert_array_equal(res.q[:, 0], [1.0 + 0.5 * 2.0, 2.0, 0.0])
 
 
 def test_update_rules_by_hand():
     q = np.array([1.0, 3.0, 2.0])
     mask = np.array([True, False, True])
-    assert K.td_update(1.0, 0.25, 3.0) == 1.5
-    assert K.td_target(1.0, 0.5, 4.0, False) == 3.0
-    assert K.td_target(1.0, 0.5, 4.0, True) == 1.0
-    assert K.q_learning_target(0.0, 1.0, q, mask, False) == 2.0  # 3.0 is unavailable
+    assert tdk.td_update(1.0, 0.25, 3.0) == 1.5
+    assert tdk.td_target(1.0, 0.5, 4.0, False) == 3.0
+    assert tdk.td_target(1.0, 0.5, 4.0, True) == 1.0
+    assert tdk.q_learning_target(0.0, 1.0, q, mask, False) == 2.0  # 3.0 is unavailable
     # epsilon-greedy over {0, 2}: 0.9 + 0.05 on action 2, 0.05 on action 0.
-    assert K.expected_sarsa_target(0.0, 1.0, q, mask, 0.1, False) == pytest.approx(0.95 * 2 + 0.05 * 1)
-    assert K.double_q_target(0.0, 1.0, np.array([0.0, 9.0, 5.0]), q, mask, False) == 2.0
-    g, disc = K.n_step_return(np.array([9.0, 1.0, 2.0, 4.0]), 0, 3, 0.5)
+    assert tdk.expected_sarsa_target(0.0, 1.0, q, mask, 0.1, False) == pytest.approx(
+        0.95 * 2 + 0.05 * 1
+    )
+    assert tdk.double_q_target(0.0, 1.0, np.array([0.0, 9.0, 5.0]), q, mask, False) == 2.0
+    g, disc = tdk.n_step_return(np.array([9.0, 1.0, 2.0, 4.0]), 0, 3, 0.5)
     assert (g, disc) == (1.0 + 0.5 * 2.0 + 0.25 * 4.0, 0.125)
 
 
 ALGOS = [
-    ("td0", {}), ("n-step-td", {"n": 3}), ("td-lambda", {"lam": 0.7}),
-    ("sarsa", {}), ("q-learning", {}), ("expected-sarsa", {}), ("double-q-learning", {}),
-    ("n-step-sarsa", {"n": 3}), ("sarsa-lambda", {"lam": 0.7, "trace": "replacing"}),
+    ("td0", {}),
+    ("n-step-td", {"n": 3}),
+    ("td-lambda", {"lam": 0.7}),
+    ("sarsa", {}),
+    ("q-learning", {}),
+    ("expected-sarsa", {}),
+    ("double-q-learning", {}),
+    ("n-step-sarsa", {"n": 3}),
+    ("sarsa-lambda", {"lam": 0.7, "trace": "replacing"}),
     ("dyna-q", {"planning_steps": 3}),
 ]
 
 
 def _learner(name):
-    return getattr(T, name.replace("-", "_"))
+    return getattr(tab, name.replace("-", "_"))
 
 
 @pytest.mark.parametrize(("name", "opts"), ALGOS)
@@ -155,8 +165,8 @@ def test_seeded_runs_are_identical(name, opts, lake):
 
 
 def test_run_seeds_matches_single_runs_and_is_reproducible(cliff):
-    study = T.run_seeds("sarsa", cliff, 4, seed=9, episodes=20, alpha=0.5)
-    again = T.run_seeds("sarsa", cliff, 4, seed=9, episodes=20, alpha=0.5)
+    study = tab.run_seeds("sarsa", cliff, 4, seed=9, episodes=20, alpha=0.5)
+    again = tab.run_seeds("sarsa", cliff, 4, seed=9, episodes=20, alpha=0.5)
     np.testing.assert_array_equal(study.returns, again.returns)
     np.testing.assert_array_equal(study.q, again.q)
     assert study.returns.shape == (4, 20)
@@ -165,7 +175,7 @@ def test_run_seeds_matches_single_runs_and_is_reproducible(cliff):
 
 
 def test_returns_and_steps_bookkeeping(cliff):
-    res = T.sarsa(cliff, episodes=25, alpha=0.5, seed=1)
+    res = tab.sarsa(cliff, episodes=25, alpha=0.5, seed=1)
     assert len(res.episode_returns) == 25
     # gamma = 1 and -1 per step (-100 off the cliff): the return bounds the step count.
     assert res.steps >= -res.episode_returns.sum() / 100

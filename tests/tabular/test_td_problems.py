@@ -35,7 +35,15 @@ def test_random_walk_rejects_even_sizes():
 def test_cliff_walking_equals_gymnasium_model():
     ours = pl.problems.cliff_walking()
     theirs = pl.FiniteMDP.from_gymnasium("CliffWalking-v1")
-    for field in ("indptr", "next_states", "probs", "rewards", "terminal", "action_mask", "initial"):
+    for field in (
+        "indptr",
+        "next_states",
+        "probs",
+        "rewards",
+        "terminal",
+        "action_mask",
+        "initial",
+    ):
         np.testing.assert_array_equal(getattr(ours, field), getattr(theirs, field), err_msg=field)
     assert ours.actions == ("up", "right", "down", "left")
 
@@ -78,7 +86,9 @@ def test_maximization_bias_mdp():
     assert len(mdp.available_actions("B")) == 10
 
 
-@pytest.mark.parametrize("gym_id", ["RandomWalk", "CliffWalking", "WindyGridworld", "MaximizationBias"])
+@pytest.mark.parametrize(
+    "gym_id", ["RandomWalk", "CliffWalking", "WindyGridworld", "MaximizationBias"]
+)
 def test_registered_gymnasium_ids_pass_check_env(gym_id):
     env = gym.make(f"policylab/{gym_id}-v0")
     check_env(env.unwrapped, skip_render_check=True)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import policylab as pl
-from policylab import tabular as T
+from policylab import tabular as tab
 
 
 def _rms_after(study, truth):
@@ -18,21 +18,31 @@ def test_figure_6_2_td_beats_constant_alpha_mc_on_the_random_walk():
     at every alpha of the figure (MC = n-step TD with n beyond any episode)."""
     mdp = pl.problems.random_walk()
     truth = pl.problems.random_walk_true_values()
-    td = {a: _rms_after(T.run_seeds("td0", mdp, 100, seed=0, episodes=100, alpha=a, init=0.5), truth)
-          for a in (0.05, 0.1, 0.15)}
-    mc = {a: _rms_after(T.run_seeds("n-step-td", mdp, 100, seed=0, episodes=100, alpha=a, init=0.5,
-                                    n=100_000), truth)
-          for a in (0.01, 0.02, 0.03, 0.04)}
+    td = {
+        a: _rms_after(
+            tab.run_seeds("td0", mdp, 100, seed=0, episodes=100, alpha=a, init=0.5), truth
+        )
+        for a in (0.05, 0.1, 0.15)
+    }
+    mc = {
+        a: _rms_after(
+            tab.run_seeds(
+                "n-step-td", mdp, 100, seed=0, episodes=100, alpha=a, init=0.5, n=100_000
+            ),
+            truth,
+        )
+        for a in (0.01, 0.02, 0.03, 0.04)
+    }
     assert max(td.values()) < min(mc.values())
     assert td[0.05] < 0.05  # approaches the true values
     # The estimates themselves, averaged over runs, are near 1/6 .. 5/6.
-    study = T.run_seeds("td0", mdp, 100, seed=1, episodes=100, alpha=0.05, init=0.5)
+    study = tab.run_seeds("td0", mdp, 100, seed=1, episodes=100, alpha=0.05, init=0.5)
     np.testing.assert_allclose(study.v.mean(axis=0)[1:6], truth[1:6], atol=0.03)
 
 
 def test_figure_6_2_error_curve_decreases():
     mdp = pl.problems.random_walk()
-    res = T.td0(mdp, episodes=100, alpha=0.05, init=0.5, seed=0, checkpoints=100)
+    res = tab.td0(mdp, episodes=100, alpha=0.05, init=0.5, seed=0, checkpoints=100)
     assert res.error_target == "v_pi"
     assert res.checkpoints[-1] == 100
     assert res.error_rms[-1] < res.error_rms[0]
@@ -43,12 +53,12 @@ def test_figure_6_4_cliff_walking_sarsa_safe_q_learning_optimal():
     averaged over runs, is about -29 for Sarsa (safe path) and -50 for Q-learning
     (optimal path, with falls from exploration)."""
     mdp = pl.problems.cliff_walking()
-    sarsa = T.run_seeds("sarsa", mdp, 50, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
-    qlearn = T.run_seeds("q-learning", mdp, 50, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
+    sarsa = tab.run_seeds("sarsa", mdp, 50, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
+    qlearn = tab.run_seeds("q-learning", mdp, 50, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
     assert sarsa.mean_return(100) == pytest.approx(-29, abs=2.5)
     assert qlearn.mean_return(100) == pytest.approx(-50, abs=2.5)
     # Q-learning's greedy policy is the optimal 13-step path along the cliff.
-    res = T.q_learning(mdp, episodes=500, alpha=0.5, epsilon=0.1, seed=0)
+    res = tab.q_learning(mdp, episodes=500, alpha=0.5, epsilon=0.1, seed=0)
     ep = pl.rollout(mdp, res.to_policy(), seed=0, max_steps=100)
     assert ep.ret(1.0) == -13.0
 
@@ -60,8 +70,8 @@ def test_figure_6_5_double_q_learning_removes_the_maximization_bias():
     mdp = pl.problems.maximization_bias()
     left = mdp.action_index("left")
     kw = dict(seed=0, episodes=300, alpha=0.1, epsilon=0.1)
-    q = T.run_seeds("q-learning", mdp, 1000, **kw)
-    dq = T.run_seeds("double-q-learning", mdp, 1000, **kw)
+    q = tab.run_seeds("q-learning", mdp, 1000, **kw)
+    dq = tab.run_seeds("double-q-learning", mdp, 1000, **kw)
     q_left = (q.first_actions == left).mean(axis=0)
     dq_left = (dq.first_actions == left).mean(axis=0)
     assert q_left[:100].mean() > 0.5
@@ -75,15 +85,21 @@ def test_figure_6_5_double_q_learning_removes_the_maximization_bias():
     assert dq.q[:, a, left].mean() == pytest.approx(-0.1, abs=0.08)
 
 
-@pytest.mark.parametrize("learner", [T.q_learning, T.sarsa])
+@pytest.mark.parametrize("learner", [tab.q_learning, tab.sarsa])
 def test_frozenlake_4x4_exact_optimal_policy_with_decaying_schedules(learner):
     """FrozenLake 4x4 (slippery, gamma = 0.95): with epsilon decaying exponentially and
     alpha = 1/n^0.6 the greedy policy is optimal in every state (checked against q* by
     value iteration), for several seeds."""
     mdp = pl.FiniteMDP.from_gymnasium("FrozenLake-v1", gamma=0.95)
     for seed in range(3):
-        res = learner(mdp, episodes=30_000, alpha="inverse:1,0.6,0", epsilon="exp:1,0.9995,0.01",
-                      seed=seed, checkpoints=2)
+        res = learner(
+            mdp,
+            episodes=30_000,
+            alpha="inverse:1,0.6,0",
+            epsilon="exp:1,0.9995,0.01",
+            seed=seed,
+            checkpoints=2,
+        )
         assert res.error_target == "q*"
         assert res.error["optimal_actions"] == 1.0, (learner.__name__, seed)
         v_greedy = pl.evaluate_policy(mdp, res.to_policy())
@@ -110,13 +126,13 @@ def test_windy_gridworld_figure_6_3():
     first 8000 steps (Figure 6.3), its later episodes are a few steps longer than the
     best epsilon-soft policy's 17 (exact), and Q-learning's greedy path is the optimal 15."""
     mdp = pl.problems.windy_gridworld()
-    study = T.run_seeds("sarsa", mdp, 20, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
+    study = tab.run_seeds("sarsa", mdp, 20, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
     steps_to_170 = study.lengths[:, :170].sum(axis=1).mean()
     assert steps_to_170 == pytest.approx(8000, rel=0.12)
     best = _best_epsilon_soft_length(mdp, 0.1)
     assert best == pytest.approx(17.05, abs=0.01)
     assert best < study.lengths[:, 400:].mean() < best + 6
-    res = T.q_learning(mdp, episodes=500, alpha=0.5, epsilon=0.1, seed=0)
+    res = tab.q_learning(mdp, episodes=500, alpha=0.5, epsilon=0.1, seed=0)
     ep = pl.rollout(mdp, res.to_policy(), seed=0, max_steps=100)
     assert ep.terminated and len(ep) == 15
 
@@ -125,17 +141,19 @@ def test_dyna_q_learns_faster_than_q_learning_per_episode():
     """Figure 8.2's point: planning steps shorten the episodes of the first episodes."""
     mdp = pl.problems.windy_gridworld()
     kw = dict(seed=0, episodes=30, alpha=0.5, epsilon=0.1)
-    plain = T.run_seeds("dyna-q", mdp, 10, planning_steps=0, **kw)
-    dyna = T.run_seeds("dyna-q", mdp, 10, planning_steps=20, **kw)
+    plain = tab.run_seeds("dyna-q", mdp, 10, planning_steps=0, **kw)
+    dyna = tab.run_seeds("dyna-q", mdp, 10, planning_steps=20, **kw)
     assert dyna.lengths[:, 1:].sum() < 0.5 * plain.lengths[:, 1:].sum()
 
 
 def test_sarsa_lambda_and_n_step_sarsa_solve_windy_gridworld():
     mdp = pl.problems.windy_gridworld()
     for res in (
-        T.sarsa_lambda(mdp, lam=0.9, trace="replacing", episodes=300, alpha=0.3, epsilon=0.05, seed=0),
-        T.n_step_sarsa(mdp, n=4, episodes=300, alpha=0.3, epsilon=0.05, seed=0),
-        T.expected_sarsa(mdp, episodes=300, alpha=0.5, epsilon=0.05, seed=0),
+        tab.sarsa_lambda(
+            mdp, lam=0.9, trace="replacing", episodes=300, alpha=0.3, epsilon=0.05, seed=0
+        ),
+        tab.n_step_sarsa(mdp, n=4, episodes=300, alpha=0.3, epsilon=0.05, seed=0),
+        tab.expected_sarsa(mdp, episodes=300, alpha=0.5, epsilon=0.05, seed=0),
     ):
         ep = pl.rollout(mdp, res.to_policy(), seed=0, max_steps=100)
         assert ep.terminated and len(ep) <= 17, res

@@ -85,8 +85,15 @@ def model_tuple(km: Any) -> tuple[Any, ...]:
 
     ``(indptr, next_states, probs, rewards, terminal, initial, n_actions)``.
     """
-    return (km.indptr, km.next_states, km.probs, km.rewards, km.terminal, km.initial,
-            int(km.mask.shape[1]))
+    return (
+        km.indptr,
+        km.next_states,
+        km.probs,
+        km.rewards,
+        km.terminal,
+        km.initial,
+        int(km.mask.shape[1]),
+    )
 
 
 class GymStepper:
@@ -174,7 +181,9 @@ def sarsa_target(r: float, gamma: float, q_next: float, terminated: bool) -> flo
 
 
 @register_jitable
-def q_learning_target(r: float, gamma: float, q_next_row: Any, mask_row: Any, terminated: bool) -> float:
+def q_learning_target(
+    r: float, gamma: float, q_next_row: Any, mask_row: Any, terminated: bool
+) -> float:
     """The Q-learning target R_{t+1} + gamma max_a Q(S_{t+1}, a)  (S&B eq. 6.8)."""
     if terminated:
         return r
@@ -219,15 +228,16 @@ def double_q_target(
         if mask_row[a] and q_select_row[a] > best:
             best = q_select_row[a]
             arg = a
-    return r + gamma * q_eval_row[arg]
+    return r + gamma * float(q_eval_row[arg])
 
 
 @register_jitable
 def n_step_return(rewards: Any, start: int, end: int, gamma: float) -> tuple[float, float]:
-    """sum_{i=start+1}^{end} gamma^{i-start-1} R_i (S&B eq. 7.1 without the tail), and gamma^{end-start}.
+    """The n-step return's rewards, sum_{i=start+1}^{end} gamma^{i-start-1} R_i (S&B eq. 7.1).
 
-    ``rewards`` is a ring buffer indexed ``i % len(rewards)``; the second value is the
-    discount of the bootstrap term gamma^n V(S_{t+n}).
+    Also returns gamma^{end-start}, the discount of the bootstrap term.
+
+    ``rewards`` is a ring buffer indexed ``i % len(rewards)``.
     """
     m = rewards.shape[0]
     g = 0.0
@@ -241,8 +251,18 @@ def n_step_return(rewards: Any, start: int, end: int, gamma: float) -> tuple[flo
 # ---------------------------------------------------------------------------- TD(0)
 @njit(cache=True)
 def td0_kernel(
-    env: Any, pi: Any, v: Any, k0: int, k1: int, gamma: float, alpha_params: Any,
-    max_steps: int, rng: Any, counts: Any, returns: Any, lengths: Any,
+    env: Any,
+    pi: Any,
+    v: Any,
+    k0: int,
+    k1: int,
+    gamma: float,
+    alpha_params: Any,
+    max_steps: int,
+    rng: Any,
+    counts: Any,
+    returns: Any,
+    lengths: Any,
 ) -> int:
     """Tabular TD(0) prediction of v_pi (S&B section 6.1), in place on ``v``.
 
@@ -273,7 +293,9 @@ def td0_kernel(
 
 # ---------------------------------------------------------------------------- one-step control
 @register_jitable
-def _behaviour(q1: Any, q2: Any, s: int, mask: Any, epsilon: float, rule: int, qsum: Any, rng: Any) -> int:
+def _behaviour(
+    q1: Any, q2: Any, s: int, mask: Any, epsilon: float, rule: int, qsum: Any, rng: Any
+) -> int:
     """epsilon-greedy in Q (in Q1 + Q2 for Double Q-learning)."""
     if rule == 3:
         for a in range(q1.shape[1]):
@@ -284,9 +306,22 @@ def _behaviour(q1: Any, q2: Any, s: int, mask: Any, epsilon: float, rule: int, q
 
 @njit(cache=True)
 def one_step_control_kernel(
-    env: Any, mask: Any, q1: Any, q2: Any, rule: int, k0: int, k1: int, gamma: float,
-    alpha_params: Any, epsilon_params: Any, max_steps: int, rng: Any, counts: Any,
-    returns: Any, lengths: Any, first_actions: Any,
+    env: Any,
+    mask: Any,
+    q1: Any,
+    q2: Any,
+    rule: int,
+    k0: int,
+    k1: int,
+    gamma: float,
+    alpha_params: Any,
+    epsilon_params: Any,
+    max_steps: int,
+    rng: Any,
+    counts: Any,
+    returns: Any,
+    lengths: Any,
+    first_actions: Any,
 ) -> int:
     """Sarsa, Q-learning, Expected Sarsa or Double Q-learning (S&B 6.4-6.7), in place.
 
@@ -347,9 +382,22 @@ def one_step_control_kernel(
 # ---------------------------------------------------------------------------- n-step
 @njit(cache=True)
 def n_step_kernel(
-    env: Any, mask: Any, pi: Any, w: Any, control: bool, n: int, k0: int, k1: int,
-    gamma: float, alpha_params: Any, epsilon_params: Any, max_steps: int, rng: Any,
-    counts: Any, returns: Any, lengths: Any,
+    env: Any,
+    mask: Any,
+    pi: Any,
+    w: Any,
+    control: bool,
+    n: int,
+    k0: int,
+    k1: int,
+    gamma: float,
+    alpha_params: Any,
+    epsilon_params: Any,
+    max_steps: int,
+    rng: Any,
+    counts: Any,
+    returns: Any,
+    lengths: Any,
 ) -> int:
     """n-step TD prediction (``control=False``) or n-step Sarsa (S&B 7.1, 7.2), in place.
 
@@ -416,9 +464,23 @@ def n_step_kernel(
 # ---------------------------------------------------------------------------- eligibility traces
 @njit(cache=True)
 def lambda_kernel(
-    env: Any, mask: Any, pi: Any, w: Any, control: bool, lam: float, trace: int,
-    k0: int, k1: int, gamma: float, alpha_params: Any, epsilon_params: Any, max_steps: int,
-    rng: Any, counts: Any, returns: Any, lengths: Any,
+    env: Any,
+    mask: Any,
+    pi: Any,
+    w: Any,
+    control: bool,
+    lam: float,
+    trace: int,
+    k0: int,
+    k1: int,
+    gamma: float,
+    alpha_params: Any,
+    epsilon_params: Any,
+    max_steps: int,
+    rng: Any,
+    counts: Any,
+    returns: Any,
+    lengths: Any,
 ) -> int:
     """Tabular TD(lambda) (``control=False``) or Sarsa(lambda) (S&B 12.2, 12.7), in place.
 
@@ -477,9 +539,23 @@ def lambda_kernel(
 # ---------------------------------------------------------------------------- Dyna-Q
 @njit(cache=True)
 def dyna_q_kernel(
-    env: Any, mask: Any, q: Any, n_planning: int, k0: int, k1: int, gamma: float,
-    alpha_params: Any, epsilon_params: Any, max_steps: int, rng: Any, counts: Any,
-    returns: Any, lengths: Any, model_next: Any, model_reward: Any, seen: Any,
+    env: Any,
+    mask: Any,
+    q: Any,
+    n_planning: int,
+    k0: int,
+    k1: int,
+    gamma: float,
+    alpha_params: Any,
+    epsilon_params: Any,
+    max_steps: int,
+    rng: Any,
+    counts: Any,
+    returns: Any,
+    lengths: Any,
+    model_next: Any,
+    model_reward: Any,
+    seen: Any,
 ) -> int:
     """Tabular Dyna-Q (S&B 8.2): Q-learning plus ``n_planning`` updates from a learned model.
 
@@ -504,7 +580,9 @@ def dyna_q_kernel(
             disc *= gamma
             counts[s, a] += 1
             alpha = schedule_value(alpha_params, float(counts[s, a]))
-            q[s, a] = td_update(q[s, a], alpha, q_learning_target(r, gamma, q[s2], mask[s2], terminated))
+            q[s, a] = td_update(
+                q[s, a], alpha, q_learning_target(r, gamma, q[s2], mask[s2], terminated)
+            )
             if model_next[s, a] == -1:
                 seen[0] += 1
                 seen[seen[0]] = s * n_actions + a
@@ -529,4 +607,3 @@ def dyna_q_kernel(
         lengths[k] = t
         steps += t
     return steps
-

@@ -409,9 +409,18 @@ class _Run:
 
     @property
     def q(self) -> NDArray[np.float64]:
-        """Q (S, A): the control table (Q1 + Q2 averaged for Double Q); zeros for prediction."""
+        """Q (S, A): the control table (Q1 + Q2 averaged for Double Q).
+
+        Prediction learns V only; its Q is the one-step lookahead q(s, a) = sum p(s', r |
+        s, a) [r + gamma V(s')] where the model is known, else zeros.
+        """
         if not self.algo.control:
-            return np.zeros((self.P.n_states, self.P.n_actions))
+            if self.P.mdp is None:
+                return np.zeros((self.P.n_states, self.P.n_actions))
+            from policylab.planning import action_values
+
+            q = np.asarray(action_values(self.P.mdp.with_gamma(self.gamma), self.v))
+            return np.where(self.P.mask, q, 0.0)
         q = (self.w + self.q2) / 2.0 if self.algo.rule == tdk.DOUBLE_Q else self.w.copy()
         return np.where(self.P.mask, q, 0.0)
 
@@ -756,8 +765,9 @@ def td0(
         progress: Show a progress bar.
 
     Returns:
-        A :class:`LearnResult` with ``v`` (``q`` is zero: TD(0) learns V only) and the
-        error of V against the exact v_pi where the model is known.
+        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi
+        where the model is known. TD(0) learns V only: ``q`` is its one-step lookahead
+        through the model (zeros without one) and ``policy`` is the policy evaluated.
     """
     return _learn(
         _Algo("td0", "td0", False),

@@ -48,8 +48,8 @@ def q_learning_frozenlake(ctx: TourContext) -> None:
     rows = []
     for r in range(4):
         cells = []
-        for col in range(4):
-            s = 4 * r + col
+        for j in range(4):
+            s = 4 * r + j
             cells.append(
                 "H" if mdp.terminal[s] and s != 15 else "G" if s == 15 else _ARROWS[greedy[s]]
             )

@@ -70,7 +70,9 @@ def plain_gymnasium_q_learning(env: Any, n_steps: int, sarsa: bool, seed: int = 
     return n_steps
 
 
-def kernel_steps(mdp: pl.FiniteMDP, rule: int, episodes: int, *, python: bool = False) -> Callable[[], int]:
+def kernel_steps(
+    mdp: pl.FiniteMDP, rule: int, episodes: int, *, python: bool = False
+) -> Callable[[], int]:
     """One call of the one-step control kernel, compiled or over Gymnasium (general path)."""
     S, A = mdp.n_states, mdp.n_actions
     km = KernelMDP.of(mdp)
@@ -85,12 +87,32 @@ def kernel_steps(mdp: pl.FiniteMDP, rule: int, episodes: int, *, python: bool = 
         rng = rng_states(0, 1)[0]
         if python:
             env: Any = tdk.GymStepper(pl.MDPEnv(mdp), StateIndex.discrete(S), 0)
+            model = tdk.model_tuple(None)
             fn = tdk.one_step_control_kernel.py_func
         else:
-            env = tdk.model_tuple(km)
+            env, model = None, tdk.model_tuple(km)
             fn = tdk.one_step_control_kernel
-        return int(fn(env, km.mask, q1, q1, rule, 0, episodes, 0.99, alpha, eps, 100_000, rng,
-                      counts, returns, lengths, first))
+        return int(
+            fn(
+                env,
+                model,
+                km.mask,
+                q1,
+                q1,
+                rule,
+                0,
+                episodes,
+                0.99,
+                alpha,
+                eps,
+                100_000,
+                rng,
+                counts,
+                returns,
+                lengths,
+                first,
+            )
+        )
 
     return run
 
@@ -127,18 +149,26 @@ def main() -> None:
         fast, n_fast = best_of(kernel_steps(lake, rule, 200_000))
         general, n_gen = best_of(kernel_steps(lake, rule, 1_000, python=True), repeats=1)
         plain, n_plain = best_of(
-            lambda r=rule: plain_gymnasium_q_learning(lake_env, 200_000, sarsa=r == tdk.SARSA), repeats=2
+            lambda r=rule: plain_gymnasium_q_learning(lake_env, 200_000, sarsa=r == tdk.SARSA),
+            repeats=2,
         )
         rows += [
             (name, "policylab, compiled kernel (FiniteMDP)", fast, n_fast),
             (name, "policylab, general path (same kernel as Python, over MDPEnv)", general, n_gen),
-            (name, "plain Python loop over gymnasium FrozenLake (benchmarks/bench_td.py)", plain, n_plain),
+            (
+                name,
+                "plain Python loop over gymnasium FrozenLake (benchmarks/bench_td.py)",
+                plain,
+                n_plain,
+            ),
         ]
         if rule == tdk.Q_LEARNING:
             tb = mdptoolbox_steps(lake, 200_000)
             if tb is not None:
                 anchor, n_anchor = best_of(tb, repeats=1)
-                rows.append((name, "anchor: pymdptoolbox-hiive QLearning (same model)", anchor, n_anchor))
+                rows.append(
+                    (name, "anchor: pymdptoolbox-hiive QLearning (same model)", anchor, n_anchor)
+                )
         ratio = fast / plain
         rows.append((name, f"ratio compiled / plain loop: {ratio:,.0f}x", float("nan"), 0))
 

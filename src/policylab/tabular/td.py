@@ -245,6 +245,7 @@ class _Run:
     max_steps: int
     rng: NDArray[np.uint64]
     env: Any
+    model: tuple[Any, ...]
     w: NDArray[np.float64]
     episodes: int
     q2: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
@@ -276,12 +277,14 @@ class _Run:
         cols = A if algo.control else 1
         w = np.full((S, cols), float(init))
         w[P.terminal] = 0.0
-        if P.env is None:
+        if P.env is None:  # compiled path: the kernel samples the model's arrays
             assert P.mdp is not None  # the compiled path always has a model
-            env: Any = tdk.model_tuple(KernelMDP.of(P.mdp, gamma))
-        else:
+            env: Any = None
+            model = tdk.model_tuple(KernelMDP.of(P.mdp, gamma))
+        else:  # general path: the kernel steps the Gymnasium env
             env = tdk.GymStepper(P.env, P.index, env_seed)
-        run = cls(algo, P, pi, gamma, alpha, epsilon, max_steps, rng, env, w, episodes)
+            model = tdk.model_tuple(None)
+        run = cls(algo, P, pi, gamma, alpha, epsilon, max_steps, rng, env, model, w, episodes)
         run.counts = np.zeros((S, cols), dtype=np.int64)
         run.returns = np.zeros(episodes)
         run.lengths = np.zeros(episodes, dtype=np.int64)
@@ -307,6 +310,7 @@ class _Run:
             return int(
                 kernel(tdk.td0_kernel)(
                     self.env,
+                    self.model,
                     self.pi,
                     self.w[:, 0],
                     k0,
@@ -325,6 +329,7 @@ class _Run:
             return int(
                 kernel(tdk.one_step_control_kernel)(
                     self.env,
+                    self.model,
                     P.mask,
                     self.w,
                     q2,
@@ -346,6 +351,7 @@ class _Run:
             return int(
                 kernel(tdk.n_step_kernel)(
                     self.env,
+                    self.model,
                     P.mask,
                     self.pi,
                     self.w,
@@ -367,6 +373,7 @@ class _Run:
             return int(
                 kernel(tdk.lambda_kernel)(
                     self.env,
+                    self.model,
                     P.mask,
                     self.pi,
                     self.w,
@@ -388,6 +395,7 @@ class _Run:
         return int(
             kernel(tdk.dyna_q_kernel)(
                 self.env,
+                self.model,
                 P.mask,
                 self.w,
                 a.planning,

@@ -80,20 +80,22 @@ TRACE_ACCUMULATING, TRACE_REPLACING = 0, 1
 
 
 # ---------------------------------------------------------------------------- environment
-def model_tuple(km: Any) -> tuple[Any, ...]:
-    """The model a compiled kernel steps, from a :class:`~policylab.tabular.kernels.KernelMDP`.
+def model_tuple(km: Any | None) -> tuple[Any, ...]:
+    """The model arrays a kernel samples, from a :class:`~policylab.tabular.kernels.KernelMDP`.
 
-    ``(indptr, next_states, probs, rewards, terminal, initial, n_actions)``.
+    ``(indptr, next_states, probs, rewards, terminal, initial)``; with None (the
+    general path, which steps a Gymnasium env instead) empty arrays of the same types.
     """
-    return (
-        km.indptr,
-        km.next_states,
-        km.probs,
-        km.rewards,
-        km.terminal,
-        km.initial,
-        int(km.mask.shape[1]),
-    )
+    if km is None:
+        return (
+            np.zeros(1, dtype=np.int64),
+            np.zeros(0, dtype=np.int32),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros(1, dtype=np.bool_),
+            np.zeros(1),
+        )
+    return (km.indptr, km.next_states, km.probs, km.rewards, km.terminal, km.initial)
 
 
 class GymStepper:
@@ -121,31 +123,50 @@ class GymStepper:
         return int(self.index(obs)), float(r), bool(terminated), bool(truncated)
 
 
-def env_reset(env: Any, rng: Any) -> int:
-    """S_0: ``env.reset()`` (general path; compiled: a draw from the model's start)."""
+def env_reset(env: Any, initial: Any, rng: Any) -> int:
+    """S_0: ``env.reset()`` (general path) or a draw from the model's start distribution.
+
+    On the compiled path ``env`` is None and the model's arrays are given (unpacked once
+    per kernel: a tuple read inside the loop would cost reference counting each step).
+    """
     return int(env.reset())
 
 
-def env_step(env: Any, s: int, a: int, rng: Any) -> tuple[int, float, bool, bool]:
-    """(S_{t+1}, R_{t+1}, terminated, truncated) after A_t = a in S_t = s."""
+def env_step(
+    env: Any,
+    s: int,
+    a: int,
+    rng: Any,
+    indptr: Any,
+    next_states: Any,
+    probs: Any,
+    rewards: Any,
+    terminal: Any,
+) -> tuple[int, float, bool, bool]:
+    """(S_{t+1}, R_{t+1}, terminated, truncated) after A_t = a in S_t = s.
+
+    General path: ``env.step(a)``. Compiled path (``env`` None): one outcome of row
+    ``s * A + a`` of the outcome table drawn with the shared ``sample_next``.
+    """
     return env.step(a)  # type: ignore[no-any-return]
 
 
 @overload(env_reset)
-def _env_reset_model(env, rng):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
-    if isinstance(env, types.BaseTuple):
-        return lambda env, rng: sample_start(env[5], rng)
+def _env_reset_model(env, initial, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
+    if isinstance(env, types.NoneType):
+        return lambda env, initial, rng: sample_start(initial, rng)
     return None
 
 
 @overload(env_step)
-def _env_step_model(env, s, a, rng):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
-    if isinstance(env, types.BaseTuple):
+def _env_step_model(env, s, a, rng, indptr, next_states, probs, rewards, terminal):  # type: ignore[no-untyped-def]  # noqa: E501  # pragma: no cover
+    if isinstance(env, types.NoneType):
 
-        def impl(env, s, a, rng):  # type: ignore[no-untyped-def]
-            k = sample_next(env[0], env[2], s * env[6] + a, rng)
-            nxt = int(env[1][k])
-            return nxt, float(env[3][k]), bool(env[4][nxt]), False
+        def impl(env, s, a, rng, indptr, next_states, probs, rewards, terminal):  # type: ignore[no-untyped-def]
+            n_actions = (indptr.shape[0] - 1) // terminal.shape[0]
+            k = sample_next(indptr, probs, s * n_actions + a, rng)
+            nxt = int(next_states[k])
+            return nxt, float(rewards[k]), bool(terminal[nxt]), False
 
         return impl
     return None
@@ -252,6 +273,7 @@ def n_step_return(rewards: Any, start: int, end: int, gamma: float) -> tuple[flo
 @njit(cache=True)
 def td0_kernel(
     env: Any,
+    model: Any,
     pi: Any,
     v: Any,
     k0: int,
@@ -269,13 +291,16 @@ def td0_kernel(
     Each step: A ~ pi(. | S); take A, observe R, S'; V(S) <- V(S) + alpha [R + gamma
     V(S') - V(S)]; S <- S'.
     """
+    indptr, next_states, probs, rewards, terminal, initial = model
     steps = 0
     for k in range(k0, k1):
-        s = env_reset(env, rng)
+        s = env_reset(env, initial, rng)
         g, disc, t = 0.0, 1.0, 0
         while True:
             a = sample_action(pi[s], rng)
-            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            s2, r, terminated, truncated = env_step(
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal
+            )
             t += 1
             g += disc * r
             disc *= gamma
@@ -307,6 +332,7 @@ def _behaviour(
 @njit(cache=True)
 def one_step_control_kernel(
     env: Any,
+    model: Any,
     mask: Any,
     q1: Any,
     q2: Any,
@@ -333,16 +359,19 @@ def one_step_control_kernel(
     (the other one values the argmax); behaviour is epsilon-greedy in Q1 + Q2.
     ``first_actions[k]`` receives A_0 of episode k (Figure 6.5 counts "left" in A).
     """
+    indptr, next_states, probs, rewards, terminal, initial = model
     qsum = np.zeros(q1.shape[1])
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
-        s = env_reset(env, rng)
+        s = env_reset(env, initial, rng)
         a = _behaviour(q1, q2, s, mask, epsilon, rule, qsum, rng)
         first_actions[k] = a
         g, disc, t = 0.0, 1.0, 0
         while True:
-            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            s2, r, terminated, truncated = env_step(
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal
+            )
             t += 1
             g += disc * r
             disc *= gamma
@@ -383,6 +412,7 @@ def one_step_control_kernel(
 @njit(cache=True)
 def n_step_kernel(
     env: Any,
+    model: Any,
     mask: Any,
     pi: Any,
     w: Any,
@@ -410,6 +440,7 @@ def n_step_kernel(
     and W(S_tau[, A_tau]) <- W + alpha [G - W]. A truncated episode bootstraps from its
     last state. With n = 1 this is exactly TD(0) or Sarsa.
     """
+    indptr, next_states, probs, rewards, terminal, initial = model
     m = n + 1
     S_buf = np.zeros(m, dtype=np.int64)
     A_buf = np.zeros(m, dtype=np.int64)
@@ -418,7 +449,7 @@ def n_step_kernel(
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
-        s0 = env_reset(env, rng)
+        s0 = env_reset(env, initial, rng)
         S_buf[0] = s0
         if control:
             A_buf[0] = epsilon_greedy_action(w[s0], mask[s0], epsilon, rng)
@@ -429,7 +460,17 @@ def n_step_kernel(
             if t < T:
                 if not control:  # prediction: A_t ~ pi(. | S_t)
                     A_buf[t % m] = sample_action(pi[S_buf[t % m]], rng)
-                s2, r, terminated, truncated = env_step(env, S_buf[t % m], A_buf[t % m], rng)
+                s2, r, terminated, truncated = env_step(
+                    env,
+                    S_buf[t % m],
+                    A_buf[t % m],
+                    rng,
+                    indptr,
+                    next_states,
+                    probs,
+                    rewards,
+                    terminal,
+                )
                 g += disc * r
                 disc *= gamma
                 R_buf[(t + 1) % m] = r
@@ -465,6 +506,7 @@ def n_step_kernel(
 @njit(cache=True)
 def lambda_kernel(
     env: Any,
+    model: Any,
     mask: Any,
     pi: Any,
     w: Any,
@@ -490,19 +532,22 @@ def lambda_kernel(
     each episode. With lambda = 0 this is exactly TD(0) or Sarsa. The step size is read
     at the current entry's update count.
     """
+    indptr, next_states, probs, rewards, terminal, initial = model
     e = np.zeros_like(w)
     n_rows, n_cols = w.shape
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
         e[:, :] = 0.0
-        s = env_reset(env, rng)
+        s = env_reset(env, initial, rng)
         a = epsilon_greedy_action(w[s], mask[s], epsilon, rng) if control else 0
         g, disc, t = 0.0, 1.0, 0
         while True:
             if not control:
                 a = sample_action(pi[s], rng)
-            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            s2, r, terminated, truncated = env_step(
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal
+            )
             t += 1
             g += disc * r
             disc *= gamma
@@ -540,6 +585,7 @@ def lambda_kernel(
 @njit(cache=True)
 def dyna_q_kernel(
     env: Any,
+    model: Any,
     mask: Any,
     q: Any,
     n_planning: int,
@@ -566,15 +612,18 @@ def dyna_q_kernel(
     ``seen[0]`` counts the pairs seen, ``seen[1:]`` lists them (kept across calls).
     With ``n_planning = 0`` this is exactly Q-learning.
     """
+    indptr, next_states, probs, rewards, terminal, initial = model
     n_actions = q.shape[1]
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
-        s = env_reset(env, rng)
+        s = env_reset(env, initial, rng)
         a = epsilon_greedy_action(q[s], mask[s], epsilon, rng)
         g, disc, t = 0.0, 1.0, 0
         while True:
-            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            s2, r, terminated, truncated = env_step(
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal
+            )
             t += 1
             g += disc * r
             disc *= gamma

@@ -151,14 +151,14 @@ def env_step(
     return env.step(a)  # type: ignore[no-any-return]
 
 
-@overload(env_reset)
+@overload(env_reset, inline="always")
 def _env_reset_model(env, initial, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
     if isinstance(env, types.NoneType):
         return lambda env, initial, rng: sample_start(initial, rng)
     return None
 
 
-@overload(env_step)
+@overload(env_step, inline="always")
 def _env_step_model(env, s, a, rng, indptr, next_states, probs, rewards, terminal):  # type: ignore[no-untyped-def]  # noqa: E501  # pragma: no cover
     if isinstance(env, types.NoneType):
 

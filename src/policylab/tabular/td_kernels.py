@@ -159,7 +159,7 @@ def _env_reset_model(env, initial, rng):  # type: ignore[no-untyped-def]  # prag
 
 
 @overload(env_step, inline="always")
-def _env_step_model(env, s, a, rng, indptr, next_states, probs, rewards, terminal):  # type: ignore[no-untyped-def]  # noqa: E501  # pragma: no cover
+def _env_step_model(env, s, a, rng, indptr, next_states, probs, rewards, terminal):  # type: ignore[no-untyped-def]  # pragma: no cover
     if isinstance(env, types.NoneType):
 
         def impl(env, s, a, rng, indptr, next_states, probs, rewards, terminal):  # type: ignore[no-untyped-def]

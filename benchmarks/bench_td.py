@@ -174,9 +174,9 @@ def main() -> None:
         rows.append((name, f"ratio compiled / plain loop: {ratio:,.0f}x", float("nan"), 0))
 
     cliff = pl.problems.cliff_walking()
-    tabular.run_seeds("sarsa", cliff, 2, episodes=10)  # warm-up
+    tabular.seed_study("sarsa", cliff, 2, episodes=10)  # warm-up
     t0 = time.perf_counter()
-    study = tabular.run_seeds("sarsa", cliff, 100, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
+    study = tabular.seed_study("sarsa", cliff, 100, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
     dt = time.perf_counter() - t0
 
     lines = [
@@ -196,7 +196,7 @@ def main() -> None:
     lines += [
         "",
         "100-seed cliff-walking study (Sarsa, epsilon 0.1, alpha 0.5, 500 episodes per seed, "
-        "`policylab.tabular.run_seeds`):",
+        "`policylab.tabular.seed_study`):",
         "",
         "| seeds | episodes | steps | seconds | seeds/s | steps/s | mean reward/episode "
         "(101-500) |",

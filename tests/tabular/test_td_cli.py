@@ -118,15 +118,15 @@ def test_api_bad_input_names_the_problem():
     with pytest.raises(InvalidArgumentError, match="positive integer"):
         tab.sarsa(mdp, episodes=0)
     with pytest.raises(InvalidArgumentError, match="control method"):
-        tab.run_seeds("sarsa", mdp, 2, episodes=1, policy=pl.Policy.uniform(mdp))
+        tab.seed_study("sarsa", mdp, 2, episodes=1, policy=pl.Policy.uniform(mdp))
     with pytest.raises(InvalidArgumentError, match="Discrete"):
         tab.q_learning(gym.make("CartPole-v1"), episodes=1)
     with pytest.raises(InvalidPolicyError):
         tab.td0(pl.problems.random_walk(), np.ones((7, 2)), episodes=1)
     with pytest.raises(InvalidArgumentError, match="unknown TD algorithm"):
-        tab.run_seeds("td1000", mdp, 2)
+        tab.seed_study("td1000", mdp, 2)
     with pytest.raises(InvalidArgumentError, match="unknown options"):
-        tab.run_seeds("sarsa", mdp, 2, episodes=2, lam=0.5)
+        tab.seed_study("sarsa", mdp, 2, episodes=2, lam=0.5)
     with pytest.raises(InvalidArgumentError, match="gamma"):
         tab.q_learning(mdp, gamma=1.5)
 

@@ -164,9 +164,9 @@ def test_seeded_runs_are_identical(name, opts, lake):
     assert a.steps != c.steps or not np.array_equal(a.q, c.q) or not np.array_equal(a.v, c.v)
 
 
-def test_run_seeds_matches_single_runs_and_is_reproducible(cliff):
-    study = tab.run_seeds("sarsa", cliff, 4, seed=9, episodes=20, alpha=0.5)
-    again = tab.run_seeds("sarsa", cliff, 4, seed=9, episodes=20, alpha=0.5)
+def test_seed_study_matches_single_runs_and_is_reproducible(cliff):
+    study = tab.seed_study("sarsa", cliff, 4, seed=9, episodes=20, alpha=0.5)
+    again = tab.seed_study("sarsa", cliff, 4, seed=9, episodes=20, alpha=0.5)
     np.testing.assert_array_equal(study.returns, again.returns)
     np.testing.assert_array_equal(study.q, again.q)
     assert study.returns.shape == (4, 20)

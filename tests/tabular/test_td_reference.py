@@ -20,13 +20,13 @@ def test_figure_6_2_td_beats_constant_alpha_mc_on_the_random_walk():
     truth = pl.problems.random_walk_true_values()
     td = {
         a: _rms_after(
-            tab.run_seeds("td0", mdp, 100, seed=0, episodes=100, alpha=a, init=0.5), truth
+            tab.seed_study("td0", mdp, 100, seed=0, episodes=100, alpha=a, init=0.5), truth
         )
         for a in (0.05, 0.1, 0.15)
     }
     mc = {
         a: _rms_after(
-            tab.run_seeds(
+            tab.seed_study(
                 "n-step-td", mdp, 100, seed=0, episodes=100, alpha=a, init=0.5, n=100_000
             ),
             truth,
@@ -36,7 +36,7 @@ def test_figure_6_2_td_beats_constant_alpha_mc_on_the_random_walk():
     assert max(td.values()) < min(mc.values())
     assert td[0.05] < 0.05  # approaches the true values
     # The estimates themselves, averaged over runs, are near 1/6 .. 5/6.
-    study = tab.run_seeds("td0", mdp, 100, seed=1, episodes=100, alpha=0.05, init=0.5)
+    study = tab.seed_study("td0", mdp, 100, seed=1, episodes=100, alpha=0.05, init=0.5)
     np.testing.assert_allclose(study.v.mean(axis=0)[1:6], truth[1:6], atol=0.03)
 
 
@@ -53,8 +53,8 @@ def test_figure_6_4_cliff_walking_sarsa_safe_q_learning_optimal():
     averaged over runs, is about -29 for Sarsa (safe path) and -50 for Q-learning
     (optimal path, with falls from exploration)."""
     mdp = pl.problems.cliff_walking()
-    sarsa = tab.run_seeds("sarsa", mdp, 50, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
-    qlearn = tab.run_seeds("q-learning", mdp, 50, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
+    sarsa = tab.seed_study("sarsa", mdp, 50, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
+    qlearn = tab.seed_study("q-learning", mdp, 50, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
     assert sarsa.mean_return(100) == pytest.approx(-29, abs=2.5)
     assert qlearn.mean_return(100) == pytest.approx(-50, abs=2.5)
     # Q-learning's greedy policy is the optimal 13-step path along the cliff.
@@ -70,8 +70,8 @@ def test_figure_6_5_double_q_learning_removes_the_maximization_bias():
     mdp = pl.problems.maximization_bias()
     left = mdp.action_index("left")
     kw = dict(seed=0, episodes=300, alpha=0.1, epsilon=0.1)
-    q = tab.run_seeds("q-learning", mdp, 1000, **kw)
-    dq = tab.run_seeds("double-q-learning", mdp, 1000, **kw)
+    q = tab.seed_study("q-learning", mdp, 1000, **kw)
+    dq = tab.seed_study("double-q-learning", mdp, 1000, **kw)
     q_left = (q.first_actions == left).mean(axis=0)
     dq_left = (dq.first_actions == left).mean(axis=0)
     assert q_left[:100].mean() > 0.5
@@ -126,7 +126,7 @@ def test_windy_gridworld_figure_6_3():
     first 8000 steps (Figure 6.3), its later episodes are a few steps longer than the
     best epsilon-soft policy's 17 (exact), and Q-learning's greedy path is the optimal 15."""
     mdp = pl.problems.windy_gridworld()
-    study = tab.run_seeds("sarsa", mdp, 20, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
+    study = tab.seed_study("sarsa", mdp, 20, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
     steps_to_170 = study.lengths[:, :170].sum(axis=1).mean()
     assert steps_to_170 == pytest.approx(8000, rel=0.12)
     best = _best_epsilon_soft_length(mdp, 0.1)
@@ -141,8 +141,8 @@ def test_dyna_q_learns_faster_than_q_learning_per_episode():
     """Figure 8.2's point: planning steps shorten the episodes of the first episodes."""
     mdp = pl.problems.windy_gridworld()
     kw = dict(seed=0, episodes=30, alpha=0.5, epsilon=0.1)
-    plain = tab.run_seeds("dyna-q", mdp, 10, planning_steps=0, **kw)
-    dyna = tab.run_seeds("dyna-q", mdp, 10, planning_steps=20, **kw)
+    plain = tab.seed_study("dyna-q", mdp, 10, planning_steps=0, **kw)
+    dyna = tab.seed_study("dyna-q", mdp, 10, planning_steps=20, **kw)
     assert dyna.lengths[:, 1:].sum() < 0.5 * plain.lengths[:, 1:].sum()
 
 

@@ -118,7 +118,8 @@ def _show(res: Any, max_rows: int) -> None:
         console.print(f"[dim]... {n_live - shown} more states (raise --max-rows)[/]")
     if res.truncated:
         err_console.print(
-            f"[yellow]{res.truncated} episodes hit the step limit and were not used (raise --max-steps)[/]"
+            f"[yellow]{res.truncated} episodes hit the step limit and were not used "
+            "(raise --max-steps)[/]"
         )
     if res.error is None:
         console.print("[dim]No exact model known: no error against the exact answer.[/]")
@@ -150,8 +151,9 @@ def _make_command(spec: Any) -> Callable[..., None]:
         json_out = kw.pop("json_out")
         plot = kw.pop("plot")
         max_rows = kw.pop("max_rows")
+        episodes = kw.pop("episodes")
         args: dict[str, Any] = {
-            "episodes": kw.pop("episodes") or spec.default_episodes,
+            "episodes": spec.default_episodes if episodes is None else episodes,
             "seed": kw.pop("seed"),
             "checkpoints": kw.pop("checkpoints"),
             "max_steps": kw.pop("max_steps"),
@@ -178,8 +180,14 @@ def _make_command(spec: Any) -> Callable[..., None]:
             args[opt.param] = val
         res = spec.learner(problem, **args)
         if plot is not None:
-            from policylab.plot import save_learning_figure  # type: ignore[attr-defined,unused-ignore]
-
+            try:
+                from policylab.plot import (  # type: ignore[import-not-found,unused-ignore]
+                    save_learning_figure,
+                )
+            except ImportError:
+                raise InvalidArgumentError(
+                    "--plot needs policylab.plot (matplotlib figures), which this install lacks"
+                ) from None
             save_learning_figure(res, plot)
         if json_out:
             print_json(res.to_json())
@@ -195,9 +203,10 @@ def _make_command(spec: Any) -> Callable[..., None]:
             annotation=Annotated[
                 str,
                 typer.Argument(
-                    help="Problem: a built-in name (slippery-gridworld, blackjack, ...), a Gymnasium id with a "
-                    "model P (FrozenLake-v1), or any Gymnasium id with discrete or hashable observations "
-                    "(Blackjack-v1; learned by the general Python loop).",
+                    help="Problem: a built-in name (slippery-gridworld, blackjack, ...), a "
+                    "Gymnasium id with a model P (FrozenLake-v1), or any Gymnasium id with "
+                    "discrete or hashable observations (Blackjack-v1; learned by the general "
+                    "Python loop).",
                     show_default=False,
                 ),
             ],

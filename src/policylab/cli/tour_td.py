@@ -81,7 +81,7 @@ def cliff_walking(ctx: TourContext) -> None:
         ("q-learning", "about -50"),
         ("expected-sarsa", "above Sarsa"),
     ):
-        study = tabular.run_seeds(
+        study = tabular.seed_study(
             name, mdp, seeds, seed=ctx.seed, episodes=500, alpha=0.5, epsilon=0.1
         )
         table.add_row(name, f"{study.mean_return(100):.1f}", book, f"{study.seconds:.2f}")

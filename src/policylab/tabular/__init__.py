@@ -23,8 +23,9 @@ Layout
                outcome table, epsilon-greedy action choice, :func:`generate_episode`.
 ``truth``      :class:`GroundTruth`: exact v_pi/q_pi or v*/q* (from policylab.planning)
                and the error of an estimate (max, RMS, share of optimal greedy actions).
-``common``     argument checks, checkpoints, the :class:`~policylab.tabular.common.Recorder`
-               of the error curve, progress bars, the general path's ``StateIndex``.
+``common``     ``run_seeds`` (several seeds at once, on threads), argument checks,
+               checkpoints, the :class:`~policylab.tabular.common.Recorder` of the
+               error curve, progress bars, the general path's ``StateIndex``.
 ``result``     :class:`LearnResult`, the one result type (``to_json()`` is the CLI's
                ``--json``).
 ``registry``   the algorithm registry ``policylab learn ALGO PROBLEM`` reads.
@@ -58,7 +59,7 @@ How to add an algorithm (e.g. SARSA, in ``policylab/tabular/td.py``)
    ``kind="prediction"``) are added by the command.
 """
 
-from policylab.tabular.common import Recorder, StateIndex, checkpoint_episodes
+from policylab.tabular.common import Recorder, StateIndex, checkpoint_episodes, run_seeds
 from policylab.tabular.mc import mc_control, mc_off_policy, mc_prediction
 from policylab.tabular.registry import (
     AlgorithmSpec,
@@ -69,7 +70,6 @@ from policylab.tabular.registry import (
 )
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, schedule_value
-from policylab.tabular.truth import GroundTruth, greedy_probs
 from policylab.tabular.td import (
     SeedRuns,
     double_q_learning,
@@ -78,12 +78,13 @@ from policylab.tabular.td import (
     n_step_sarsa,
     n_step_td,
     q_learning,
-    run_seeds,
     sarsa,
     sarsa_lambda,
+    seed_study,
     td0,
     td_lambda,
 )
+from policylab.tabular.truth import GroundTruth, greedy_probs
 
 __all__ = [
     "AlgorithmSpec",
@@ -92,27 +93,27 @@ __all__ = [
     "Option",
     "Recorder",
     "Schedule",
+    "SeedRuns",
     "StateIndex",
     "algorithm",
     "checkpoint_episodes",
+    "double_q_learning",
+    "dyna_q",
+    "expected_sarsa",
     "greedy_probs",
     "list_algorithms",
     "mc_control",
     "mc_off_policy",
     "mc_prediction",
-    "register_algorithm",
-    "schedule_value",
-    # temporal-difference learning (policylab.tabular.td)
-    "SeedRuns",
-    "double_q_learning",
-    "dyna_q",
-    "expected_sarsa",
     "n_step_sarsa",
     "n_step_td",
     "q_learning",
+    "register_algorithm",
     "run_seeds",
     "sarsa",
     "sarsa_lambda",
+    "schedule_value",
+    "seed_study",
     "td0",
     "td_lambda",
 ]

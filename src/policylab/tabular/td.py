@@ -12,7 +12,7 @@ Each learner takes a :class:`~policylab.FiniteMDP` (compiled numba kernels) or a
 Gymnasium env with ``Discrete`` observations and actions (the same kernel source run
 as plain Python, see :mod:`policylab.tabular.td_kernels`), and returns a
 :class:`~policylab.tabular.LearnResult` whose error curve is held against the exact
-v_pi (prediction) or q* (control) where the model is known. :func:`run_seeds` runs
+v_pi (prediction) or q* (control) where the model is known. :func:`seed_study` runs
 one learner for many seeds at once (the studies of Figures 6.2-6.5).
 
 Example::
@@ -63,9 +63,9 @@ __all__ = [
     "n_step_sarsa",
     "n_step_td",
     "q_learning",
-    "run_seeds",
     "sarsa",
     "sarsa_lambda",
+    "seed_study",
     "td0",
     "td_lambda",
 ]
@@ -456,7 +456,7 @@ def _prepare(
     epsilon: Schedule | float | str | None,
     max_steps: int,
 ) -> tuple[_Problem, NDArray[np.float64], Policy | None, float, Schedule, Schedule, int, int]:
-    """Checked arguments shared by :func:`_learn` and :func:`run_seeds`."""
+    """Checked arguments shared by :func:`_learn` and :func:`seed_study`."""
     episodes = check_episodes(episodes)
     max_steps = check_episodes(max_steps, "max_steps")
     P = _resolve(problem, model)
@@ -601,7 +601,7 @@ class SeedRuns:
         return float(self.returns[:, first:last].mean())
 
 
-def run_seeds(
+def seed_study(
     algorithm: str,
     problem: FiniteMDP | Any,
     seeds: int = 100,
@@ -614,8 +614,12 @@ def run_seeds(
 ) -> SeedRuns:
     """Run a TD learner ``seeds`` times independently (the many-seed studies of the book).
 
-    On a FiniteMDP every run is one call of the compiled kernel; run r uses the r-th
-    RNG state of ``rng_states(seed, seeds)``, so the study is reproducible.
+    The arrays the book's figures average: every episode's return, length and first
+    action for every run, without the error curve against the exact answer. On a
+    FiniteMDP every run is one call of the compiled kernel over all its episodes; run r
+    uses the r-th RNG state of ``rng_states(seed, seeds)``, so the study is
+    reproducible. (:func:`~policylab.tabular.run_seeds` instead gives one full
+    :class:`LearnResult` per seed, error curves included, on threads.)
 
     Args:
         algorithm: A TD algorithm's registry name (``"sarsa"``, ``"q-learning"``, ...).

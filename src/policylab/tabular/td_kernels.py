@@ -270,7 +270,7 @@ def n_step_return(rewards: Any, start: int, end: int, gamma: float) -> tuple[flo
 
 
 # ---------------------------------------------------------------------------- TD(0)
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def td0_kernel(
     env: Any,
     model: Any,
@@ -329,7 +329,7 @@ def _behaviour(
     return epsilon_greedy_action(q1[s], mask[s], epsilon, rng)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def one_step_control_kernel(
     env: Any,
     model: Any,
@@ -409,7 +409,7 @@ def one_step_control_kernel(
 
 
 # ---------------------------------------------------------------------------- n-step
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def n_step_kernel(
     env: Any,
     model: Any,
@@ -503,7 +503,7 @@ def n_step_kernel(
 
 
 # ---------------------------------------------------------------------------- eligibility traces
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def lambda_kernel(
     env: Any,
     model: Any,
@@ -582,7 +582,7 @@ def lambda_kernel(
 
 
 # ---------------------------------------------------------------------------- Dyna-Q
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def dyna_q_kernel(
     env: Any,
     model: Any,

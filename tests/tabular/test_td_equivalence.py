@@ -180,3 +180,11 @@ def test_returns_and_steps_bookkeeping(cliff):
     # gamma = 1 and -1 per step (-100 off the cliff): the return bounds the step count.
     assert res.steps >= -res.episode_returns.sum() / 100
     assert np.all(res.episode_returns <= -13)
+
+
+def test_shared_run_seeds_runs_td_learners_on_threads(cliff):
+    """The shared ``run_seeds`` (threads; the TD kernels release the GIL) gives each
+    seed's own run."""
+    results = tab.run_seeds(tab.q_learning, cliff, [1, 2, 3], episodes=40, alpha=0.5, workers=2)
+    for seed, res in zip([1, 2, 3], results, strict=True):
+        same(res, tab.q_learning(cliff, episodes=40, alpha=0.5, seed=seed))

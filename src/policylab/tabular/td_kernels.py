@@ -142,6 +142,7 @@ def env_step(
     probs: Any,
     rewards: Any,
     terminal: Any,
+    n_actions: int,
 ) -> tuple[int, float, bool, bool]:
     """(S_{t+1}, R_{t+1}, terminated, truncated) after A_t = a in S_t = s.
 
@@ -159,11 +160,10 @@ def _env_reset_model(env, initial, rng):  # type: ignore[no-untyped-def]  # prag
 
 
 @overload(env_step, inline="always")
-def _env_step_model(env, s, a, rng, indptr, next_states, probs, rewards, terminal):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _env_step_model(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]  # pragma: no cover
     if isinstance(env, types.NoneType):
 
-        def impl(env, s, a, rng, indptr, next_states, probs, rewards, terminal):  # type: ignore[no-untyped-def]
-            n_actions = (indptr.shape[0] - 1) // terminal.shape[0]
+        def impl(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]
             k = sample_next(indptr, probs, s * n_actions + a, rng)
             nxt = int(next_states[k])
             return nxt, float(rewards[k]), bool(terminal[nxt]), False
@@ -292,6 +292,7 @@ def td0_kernel(
     V(S') - V(S)]; S <- S'.
     """
     indptr, next_states, probs, rewards, terminal, initial = model
+    n_actions = pi.shape[1]
     steps = 0
     for k in range(k0, k1):
         s = env_reset(env, initial, rng)
@@ -299,7 +300,7 @@ def td0_kernel(
         while True:
             a = sample_action(pi[s], rng)
             s2, r, terminated, truncated = env_step(
-                env, s, a, rng, indptr, next_states, probs, rewards, terminal
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
             )
             t += 1
             g += disc * r
@@ -318,15 +319,13 @@ def td0_kernel(
 
 # ---------------------------------------------------------------------------- one-step control
 @register_jitable
-def _behaviour(
-    q1: Any, q2: Any, s: int, mask: Any, epsilon: float, rule: int, qsum: Any, rng: Any
-) -> int:
-    """epsilon-greedy in Q (in Q1 + Q2 for Double Q-learning)."""
+def _behaviour_values(q1: Any, q2: Any, s: int, rule: int, qsum: Any) -> Any:
+    """The row epsilon-greedy acts on: Q(s, .), or Q1(s, .) + Q2(s, .) for Double Q."""
     if rule == 3:
         for a in range(q1.shape[1]):
             qsum[a] = q1[s, a] + q2[s, a]
-        return epsilon_greedy_action(qsum, mask[s], epsilon, rng)
-    return epsilon_greedy_action(q1[s], mask[s], epsilon, rng)
+        return qsum
+    return q1[s]
 
 
 @njit(cache=True, nogil=True)
@@ -360,17 +359,18 @@ def one_step_control_kernel(
     ``first_actions[k]`` receives A_0 of episode k (Figure 6.5 counts "left" in A).
     """
     indptr, next_states, probs, rewards, terminal, initial = model
+    n_actions = mask.shape[1]
     qsum = np.zeros(q1.shape[1])
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
         s = env_reset(env, initial, rng)
-        a = _behaviour(q1, q2, s, mask, epsilon, rule, qsum, rng)
+        a = epsilon_greedy_action(_behaviour_values(q1, q2, s, rule, qsum), mask[s], epsilon, rng)
         first_actions[k] = a
         g, disc, t = 0.0, 1.0, 0
         while True:
             s2, r, terminated, truncated = env_step(
-                env, s, a, rng, indptr, next_states, probs, rewards, terminal
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
             )
             t += 1
             g += disc * r
@@ -381,7 +381,9 @@ def one_step_control_kernel(
             if rule == 0:
                 q_next = 0.0
                 if not terminated:
-                    a2 = _behaviour(q1, q2, s2, mask, epsilon, rule, qsum, rng)
+                    a2 = epsilon_greedy_action(
+                        _behaviour_values(q1, q2, s2, rule, qsum), mask[s2], epsilon, rng
+                    )
                     q_next = q1[s2, a2]
                 q1[s, a] = td_update(q1[s, a], alpha, sarsa_target(r, gamma, q_next, terminated))
             elif rule == 1:
@@ -400,7 +402,9 @@ def one_step_control_kernel(
             if terminated or truncated or t >= max_steps:
                 break
             if rule != 0:
-                a2 = _behaviour(q1, q2, s2, mask, epsilon, rule, qsum, rng)
+                a2 = epsilon_greedy_action(
+                    _behaviour_values(q1, q2, s2, rule, qsum), mask[s2], epsilon, rng
+                )
             s, a = s2, a2
         returns[k] = g
         lengths[k] = t
@@ -441,6 +445,7 @@ def n_step_kernel(
     last state. With n = 1 this is exactly TD(0) or Sarsa.
     """
     indptr, next_states, probs, rewards, terminal, initial = model
+    n_actions = mask.shape[1]
     m = n + 1
     S_buf = np.zeros(m, dtype=np.int64)
     A_buf = np.zeros(m, dtype=np.int64)
@@ -470,6 +475,7 @@ def n_step_kernel(
                     probs,
                     rewards,
                     terminal,
+                    n_actions,
                 )
                 g += disc * r
                 disc *= gamma
@@ -533,6 +539,7 @@ def lambda_kernel(
     at the current entry's update count.
     """
     indptr, next_states, probs, rewards, terminal, initial = model
+    n_actions = mask.shape[1]
     e = np.zeros_like(w)
     n_rows, n_cols = w.shape
     steps = 0
@@ -546,7 +553,7 @@ def lambda_kernel(
             if not control:
                 a = sample_action(pi[s], rng)
             s2, r, terminated, truncated = env_step(
-                env, s, a, rng, indptr, next_states, probs, rewards, terminal
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
             )
             t += 1
             g += disc * r
@@ -613,7 +620,7 @@ def dyna_q_kernel(
     With ``n_planning = 0`` this is exactly Q-learning.
     """
     indptr, next_states, probs, rewards, terminal, initial = model
-    n_actions = q.shape[1]
+    n_actions = mask.shape[1]
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
@@ -622,7 +629,7 @@ def dyna_q_kernel(
         g, disc, t = 0.0, 1.0, 0
         while True:
             s2, r, terminated, truncated = env_step(
-                env, s, a, rng, indptr, next_states, probs, rewards, terminal
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
             )
             t += 1
             g += disc * r

@@ -150,3 +150,10 @@ def test_tour_td_sections_run_quick(tmp_path: Path):
     assert len(ran) == 2
     text = console.export_text()
     assert "v*(start)" in text and "q-learning" in text
+
+
+def test_general_path_indexes_observations_by_the_model_labels(capsys):
+    """Blackjack-v1's tuple observations, indexed by the exact model's state labels."""
+    out = run_json(capsys, ["learn", "q-learning", "Blackjack-v1", "--episodes", "300", "--json"])
+    assert len(out["states"]) == pl.problems.blackjack().n_states
+    assert out["error"] is not None and len(out["episode_returns"]) == 300

@@ -123,33 +123,39 @@ def _resolve(problem: Any, model: FiniteMDP | None) -> _Problem:
         raise InvalidArgumentError(
             f"TD learners need a Discrete action space; got {env.action_space}"
         )
-    if (
-        not isinstance(env.observation_space, spaces.Discrete)
-        or int(env.observation_space.start) != 0
-    ):
-        raise InvalidArgumentError(
-            "TD learners need Discrete(n) observations numbered from 0; got "
-            f"{env.observation_space} (wrap the env so that it emits state indices)"
-        )
     base = getattr(env, "unwrapped", env)
     mdp: FiniteMDP | None = model if model is not None else getattr(base, "mdp", None)
     if mdp is None and getattr(base, "P", None) is not None:
         from policylab.mdp.finite import FiniteMDP
 
         mdp = FiniteMDP.from_gymnasium(base, name=_env_name(env))
-    S, A = int(env.observation_space.n), int(env.action_space.n)
-    spec = getattr(env, "spec", None)
     name = _env_name(env)
-    if mdp is not None:
-        if (mdp.n_states, mdp.n_actions) != (S, A):
+    A = int(env.action_space.n)
+    space = env.observation_space
+    if mdp is not None and mdp.n_actions != A:
+        raise InvalidArgumentError(
+            f"the model {mdp.name!r} has {mdp.n_actions} actions; the env {name!r} has {A}"
+        )
+    if isinstance(space, spaces.Discrete) and int(space.start) == 0:
+        index = StateIndex.discrete(int(space.n))
+        if mdp is not None and mdp.n_states != len(index):
             raise InvalidArgumentError(
-                f"the model {mdp.name!r} has {mdp.n_states} states and {mdp.n_actions} "
-                f"actions; the env {name!r} has {S} and {A}"
+                f"the model {mdp.name!r} has {mdp.n_states} states; the env {name!r} has "
+                f"{len(index)}"
             )
+    elif mdp is not None:  # observations are the model's state labels (Blackjack-v1's tuples)
+        index = StateIndex.of_labels(mdp.states)
+    else:
+        raise InvalidArgumentError(
+            "TD learners need Discrete(n) observations numbered from 0, or the env's model "
+            f"(model=) to index its observations; got {env.observation_space}"
+        )
+    S = len(index)
+    if mdp is not None:
         return _Problem(
             mdp,
             env,
-            StateIndex.discrete(S),
+            index,
             S,
             A,
             np.ascontiguousarray(mdp.action_mask, dtype=np.bool_),
@@ -158,11 +164,10 @@ def _resolve(problem: Any, model: FiniteMDP | None) -> _Problem:
             np.asarray(mdp.terminal, dtype=bool),
             name,
         )
-    del spec
     return _Problem(
         None,
         env,
-        StateIndex.discrete(S),
+        index,
         S,
         A,
         np.ones((S, A), dtype=np.bool_),

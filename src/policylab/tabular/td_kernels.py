@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload, register_jitable
 
+from policylab.exceptions import UnknownLabelError
 from policylab.tabular.kernels import (
     epsilon_greedy_action,
     epsilon_greedy_prob,
@@ -118,9 +119,19 @@ class GymStepper:
         return int(self.index(obs))
 
     def step(self, a: int) -> tuple[int, float, bool, bool]:
-        """Take A_t; return (row of S_{t+1}, R_{t+1}, terminated, truncated)."""
+        """Take A_t; return (row of S_{t+1}, R_{t+1}, terminated, truncated).
+
+        A terminal observation that is not one of the index's states (Blackjack-v1's
+        final hands) gets row 0: no update ever reads the value of a terminal state.
+        """
         obs, r, terminated, truncated, _ = self.env.step(int(a))
-        return int(self.index(obs)), float(r), bool(terminated), bool(truncated)
+        try:
+            row = int(self.index(obs))
+        except UnknownLabelError:
+            if not terminated:
+                raise
+            row = 0
+        return row, float(r), bool(terminated), bool(truncated)
 
 
 def env_reset(env: Any, initial: Any, rng: Any) -> int:

@@ -57,6 +57,11 @@ def test_figure_6_4_cliff_walking_sarsa_safe_q_learning_optimal():
     qlearn = tab.seed_study("q-learning", mdp, 50, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
     assert sarsa.mean_return(100) == pytest.approx(-29, abs=2.5)
     assert qlearn.mean_return(100) == pytest.approx(-50, abs=2.5)
+    # Figure 6.3: Expected Sarsa does better than Sarsa at this alpha.
+    expected = tab.seed_study(
+        "expected-sarsa", mdp, 50, seed=0, episodes=500, alpha=0.5, epsilon=0.1
+    )
+    assert expected.mean_return(100) > sarsa.mean_return(100) + 3
     # Q-learning's greedy policy is the optimal 13-step path along the cliff.
     res = tab.q_learning(mdp, episodes=500, alpha=0.5, epsilon=0.1, seed=0)
     ep = pl.rollout(mdp, res.to_policy(), seed=0, max_steps=100)
@@ -157,3 +162,32 @@ def test_sarsa_lambda_and_n_step_sarsa_solve_windy_gridworld():
     ):
         ep = pl.rollout(mdp, res.to_policy(), seed=0, max_steps=100)
         assert ep.terminated and len(ep) <= 17, res
+
+
+def _walk19_error(algo, alpha, **kw):
+    """RMS error over the 19 states, averaged over the first 10 episodes and 100 runs
+    (Figures 7.2 and 12.6). Runs with the same seed share their first k episodes, so the
+    error after k episodes is that of a k-episode study."""
+    mdp = pl.problems.random_walk(19, left_reward=-1.0)
+    truth = pl.problems.random_walk_true_values(19, -1.0)
+    errs = []
+    for k in range(1, 11):
+        study = tab.seed_study(algo, mdp, 100, seed=0, episodes=k, alpha=alpha, **kw)
+        errs.append(np.sqrt(((study.v - truth)[:, 1:-1] ** 2).mean(axis=1)).mean())
+    return float(np.mean(errs))
+
+
+def test_figure_7_2_intermediate_n_is_best_on_the_19_state_walk():
+    """n = 4 (alpha 0.4) beats one-step TD at its best alpha and a long n = 32; its
+    error is about the 0.25-0.27 of the book's figure."""
+    four = _walk19_error("n-step-td", 0.4, n=4)
+    one = _walk19_error("n-step-td", 0.8, n=1)
+    long = _walk19_error("n-step-td", 0.1, n=32)
+    assert four == pytest.approx(0.26, abs=0.03)
+    assert four < one - 0.05 and four < long - 0.05
+
+
+def test_figure_12_6_td_lambda_beats_td0_on_the_19_state_walk():
+    lam = _walk19_error("td-lambda", 0.4, lam=0.8)
+    td0 = _walk19_error("td-lambda", 0.8, lam=0.0)
+    assert lam < td0 - 0.05

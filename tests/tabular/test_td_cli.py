@@ -157,3 +157,9 @@ def test_general_path_indexes_observations_by_the_model_labels(capsys):
     out = run_json(capsys, ["learn", "q-learning", "Blackjack-v1", "--episodes", "300", "--json"])
     assert len(out["states"]) == pl.problems.blackjack().n_states
     assert out["error"] is not None and len(out["episode_returns"]) == 300
+
+
+def test_divergence_is_reported_not_silent():
+    mdp = pl.problems.random_walk(19, left_reward=-1.0)
+    with pytest.warns(RuntimeWarning, match="diverged"):
+        tab.td_lambda(mdp, lam=0.9, alpha=0.8, episodes=50, seed=0)

@@ -428,7 +428,7 @@ class _Run:
         s, a) [r + gamma V(s')] where the model is known, else zeros.
         """
         if not self.algo.control:
-            if self.P.mdp is None:
+            if self.P.mdp is None or not np.all(np.isfinite(self.v)):
                 return np.zeros((self.P.n_states, self.P.n_actions))
             from policylab.planning import action_values
 
@@ -540,6 +540,7 @@ def _learn(
             rec.record(run.q if algo.control else None, run.v)
             advance(k1 - k0)
     seconds = time.perf_counter() - t0
+    _warn_if_diverged(algo, run, a)
     counts = run.counts if algo.control else np.repeat(run.counts, P.n_actions, axis=1) * P.mask
     pol = greedy_probs(run.q, P.mask) if algo.control else pi.copy()
     return LearnResult(
@@ -569,6 +570,36 @@ def _learn(
         },
         mdp=P.mdp,
         **rec.arrays(),
+    )
+
+
+def _warn_if_diverged(algo: _Algo, run: _Run, alpha: Schedule) -> None:
+    """Warn when the table diverged.
+
+    Diverged: non-finite values, or (with a model) values beyond ten times the largest
+    possible return, max|r| / (1 - gamma) (max|r| * max_steps for gamma = 1).
+    """
+    tables = np.concatenate([run.w.ravel(), run.q2.ravel()])
+    diverged = not np.all(np.isfinite(tables))
+    if not diverged and run.P.mdp is not None and run.P.mdp.n_outcomes:
+        r_max = float(np.abs(run.P.mdp.rewards).max())
+        horizon = 1.0 / (1.0 - run.gamma) if run.gamma < 1.0 else float(run.max_steps)
+        diverged = bool(np.abs(tables).max() > 10.0 * max(r_max, 1e-12) * horizon)
+    if not diverged:
+        return
+    import warnings
+
+    hint = (
+        " (accumulating traces diverge when alpha is large for the trace length, S&B "
+        "Figure 12.6; try replacing traces)"
+        if algo.family == "lambda"
+        else ""
+    )
+    warnings.warn(
+        f"{algo.name}: the estimates diverged (beyond any possible return) with alpha "
+        f"{alpha}; use a smaller step size{hint}",
+        RuntimeWarning,
+        stacklevel=3,
     )
 
 
@@ -696,6 +727,7 @@ def seed_study(
                 init=init,
             )
             steps += run(0, episodes)
+            _warn_if_diverged(algo, run, a)
             out_r[r], out_l[r], out_q[r], out_v[r], out_f[r] = (
                 run.returns,
                 run.lengths,

@@ -89,6 +89,8 @@ def test_learn_tables_and_gymnasium_general_path(capsys):
         (["mc-control", "slippery-gridworld", "--episodes", "0"], "episodes"),
         (["mc-prediction", "recycling-robot"], "episodic"),
         (["mc-prediction", "slippery-gridworld", "--policy", "nope"], "unknown policy"),
+        (["mc-control", "CartPole-v1"], "discrete or hashable"),
+        (["mc-control", "slippery-gridworld", "--epsilon-by", "step"], "epsilon_by"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(capsys, argv, msg):

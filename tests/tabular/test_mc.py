@@ -102,6 +102,7 @@ def test_fast_and_general_paths_agree_exactly():
     for fn, kw in (
         (mc_prediction, {}),
         (mc_control, {"epsilon": 0.2}),
+        (mc_control, {}),  # GLIE by state visits
         (mc_control, {"exploring_starts": True}),
         (mc_off_policy, {"weighted": True}),
         (mc_off_policy, {"target": pl.problems.mountain_gridworld_bad_policy(mdp)}),
@@ -175,3 +176,15 @@ def test_run_seeds_equals_separate_runs(grid):
         np.testing.assert_array_equal(res.q, mc_control(grid, episodes=500, seed=seed).q)
     with pytest.raises(InvalidArgumentError, match="FiniteMDP"):
         run_seeds(mc_control, pl.MDPEnv(grid), 2, episodes=10)
+
+
+def test_general_path_without_model_numbers_hashable_observations():
+    import gymnasium as gym
+
+    res = mc_control(gym.make("Blackjack-v1", sab=True), episodes=300, seed=0, epsilon=0.1)
+    assert res.error is None and res.mdp is None
+    assert all(isinstance(s, tuple) and len(s) == 3 for s in res.states)
+    assert res.q.shape == (len(res.states), 2)
+    assert res.counts.sum() > 0
+    with pytest.raises(InvalidArgumentError, match="FiniteMDP"):
+        res.to_policy()

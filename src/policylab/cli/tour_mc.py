@@ -78,7 +78,8 @@ def mc_control_grid(ctx: TourContext) -> None:
         table.add_column(col, justify="right" if col != "method" else "left")
     for name, kw in (
         ("exploring starts", {"exploring_starts": True}),
-        ("epsilon-greedy, epsilon_k = 1/k (GLIE)", {}),
+        ("epsilon-greedy, GLIE 1/sqrt(n(s))", {}),
+        ("epsilon-greedy, epsilon_k = 1/k", {"epsilon": "1/n"}),
         ("constant alpha 0.02, epsilon 0.1", {"alpha": 0.02, "epsilon": 0.1}),
     ):
         res = mc_control(mdp, episodes=episodes, seed=ctx.seed, **kw)

@@ -330,13 +330,10 @@ def td0_kernel(
 
 # ---------------------------------------------------------------------------- one-step control
 @register_jitable
-def _behaviour_values(q1: Any, q2: Any, s: int, rule: int, qsum: Any) -> Any:
-    """The row epsilon-greedy acts on: Q(s, .), or Q1(s, .) + Q2(s, .) for Double Q."""
-    if rule == 3:
-        for a in range(q1.shape[1]):
-            qsum[a] = q1[s, a] + q2[s, a]
-        return qsum
-    return q1[s]
+def _sum_rows(q1: Any, q2: Any, s: int, out: Any) -> None:
+    """out <- Q1(s, .) + Q2(s, .): the values Double Q-learning's behaviour acts on."""
+    for a in range(q1.shape[1]):
+        out[a] = q1[s, a] + q2[s, a]
 
 
 @njit(cache=True, nogil=True)
@@ -376,7 +373,9 @@ def one_step_control_kernel(
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
         s = env_reset(env, initial, rng)
-        a = epsilon_greedy_action(_behaviour_values(q1, q2, s, rule, qsum), mask[s], epsilon, rng)
+        if rule == 3:
+            _sum_rows(q1, q2, s, qsum)
+        a = epsilon_greedy_action(qsum if rule == 3 else q1[s], mask[s], epsilon, rng)
         first_actions[k] = a
         g, disc, t = 0.0, 1.0, 0
         while True:
@@ -392,8 +391,10 @@ def one_step_control_kernel(
             if rule == 0:
                 q_next = 0.0
                 if not terminated:
+                    if rule == 3:
+                        _sum_rows(q1, q2, s2, qsum)
                     a2 = epsilon_greedy_action(
-                        _behaviour_values(q1, q2, s2, rule, qsum), mask[s2], epsilon, rng
+                        qsum if rule == 3 else q1[s2], mask[s2], epsilon, rng
                     )
                     q_next = q1[s2, a2]
                 q1[s, a] = td_update(q1[s, a], alpha, sarsa_target(r, gamma, q_next, terminated))
@@ -413,9 +414,9 @@ def one_step_control_kernel(
             if terminated or truncated or t >= max_steps:
                 break
             if rule != 0:
-                a2 = epsilon_greedy_action(
-                    _behaviour_values(q1, q2, s2, rule, qsum), mask[s2], epsilon, rng
-                )
+                if rule == 3:
+                    _sum_rows(q1, q2, s2, qsum)
+                a2 = epsilon_greedy_action(qsum if rule == 3 else q1[s2], mask[s2], epsilon, rng)
             s, a = s2, a2
         returns[k] = g
         lengths[k] = t

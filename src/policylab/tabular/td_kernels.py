@@ -331,7 +331,7 @@ def td0_kernel(
 # ---------------------------------------------------------------------------- one-step control
 @register_jitable
 def _sum_rows(q1: Any, q2: Any, s: int, out: Any) -> None:
-    """out <- Q1(s, .) + Q2(s, .): the values Double Q-learning's behaviour acts on."""
+    """Out <- Q1(s, .) + Q2(s, .): the values Double Q-learning's behaviour acts on."""
     for a in range(q1.shape[1]):
         out[a] = q1[s, a] + q2[s, a]
 

@@ -44,6 +44,7 @@ from policylab.tabular.common import (
     progress_bar,
 )
 from policylab.tabular.kernels import KernelMDP, rng_states
+from policylab.tabular.mc import _as_env, _env_name
 from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule
@@ -111,18 +112,9 @@ def _resolve(problem: Any, model: FiniteMDP | None) -> _Problem:
             np.asarray(fm.terminal, dtype=bool),
             fm.name,
         )
-    import gymnasium as gym
     from gymnasium import spaces
 
-    env = gym.make(problem) if isinstance(problem, str) else problem
-    if not hasattr(env, "reset") or not hasattr(env, "step"):
-        raise InvalidArgumentError(
-            f"problem must be a FiniteMDP or a Gymnasium env; got {type(problem).__name__}"
-        )
-    if not isinstance(env.action_space, spaces.Discrete):
-        raise InvalidArgumentError(
-            f"TD learners need a Discrete action space; got {env.action_space}"
-        )
+    env = _as_env(problem)  # the shared check: a Gymnasium env with Discrete actions
     base = getattr(env, "unwrapped", env)
     mdp: FiniteMDP | None = model if model is not None else getattr(base, "mdp", None)
     if mdp is None and getattr(base, "P", None) is not None:
@@ -176,11 +168,6 @@ def _resolve(problem: Any, model: FiniteMDP | None) -> _Problem:
         np.zeros(S, dtype=bool),
         name,
     )
-
-
-def _env_name(env: Any) -> str:
-    spec = getattr(env, "spec", None)
-    return str(getattr(spec, "id", None) or type(getattr(env, "unwrapped", env)).__name__)
 
 
 def _policy_table(

@@ -3,11 +3,11 @@
 Public names::
 
     import policylab as pl
-    from policylab.tabular import Schedule
-    res = pl.tabular.mc_prediction(pl.problems.slippery_gridworld(), episodes=10_000, seed=0)
+    from policylab.tabular import Schedule, mc_control, mc_off_policy, mc_prediction
+    res = mc_prediction(pl.problems.slippery_gridworld(), episodes=10_000, seed=0)
     res.q, res.v, res.policy, res.checkpoints, res.error_max, res.error_rms
-    res = pl.tabular.mc_control(mdp, episodes=100_000, epsilon=Schedule.inverse(), seed=0)
-    res = pl.tabular.mc_off_policy(mdp, target=pi, weighted=True, seed=0)
+    res = mc_control(mdp, episodes=100_000, seed=0)     # GLIE epsilon-greedy
+    res = mc_off_policy(mdp, target=pi, weighted=True, seed=0)
 
 Every learner takes ``problem`` = a :class:`~policylab.FiniteMDP` (the fast path:
 episodes simulated and updates applied in compiled numba kernels) or a Gymnasium env

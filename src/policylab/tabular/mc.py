@@ -949,7 +949,11 @@ def mc_control(
         gamma: Discount rate (default: the problem's).
         seed: Seed or Generator; same seed, same result.
         checkpoints: About how many points of the error curve (log-spaced).
-        max_steps: Step limit of an episode; truncated episodes are not used.
+        max_steps: Step limit of an episode; truncated episodes are not used. On a
+            deterministic task a greedy policy (exploring starts, small epsilon) can
+            loop for ever: such episodes run to the limit and teach nothing (Monte
+            Carlo needs episodes that end; Sutton & Barto section 5.3), so keep the
+            limit small there and check ``result.truncated``.
         start: Optional start state label (FiniteMDP only, without exploring starts).
         model: The exact FiniteMDP behind an env (for the error curve).
         progress: Show a progress bar.

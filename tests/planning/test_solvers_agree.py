@@ -113,3 +113,16 @@ def test_krylov_at_gamma_one_does_not_accept_a_large_residual() -> None:
     direct = pl.policy_iteration(mdp, solver="direct")
     assert np.allclose(krylov.v, direct.v, atol=1e-9)
     assert krylov.residual < 1e-9
+
+
+def test_auto_solver_sweeps_above_the_direct_size() -> None:
+    from policylab.planning.evaluation import DIRECT_MAX_STATES
+    from policylab.problems import random_mdp
+
+    mdp = random_mdp(DIRECT_MAX_STATES + 500, 2, 6, seed=3, gamma=0.9)
+    pi = pl.Policy.from_actions(mdp, np.zeros(mdp.n_states, dtype=np.int64))
+    auto = pl.evaluate_policy(mdp, pi, return_result=True)
+    direct = pl.evaluate_policy(mdp, pi, solver="direct")
+    assert auto.info["solver"].startswith("sweeps")
+    assert auto.error_bound is not None
+    assert np.max(np.abs(auto.v - direct)) <= auto.error_bound + 1e-12

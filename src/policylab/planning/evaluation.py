@@ -5,14 +5,18 @@ non-terminal states (terminal states have value 0):
 
 * small systems (``solver="direct"``, the default below :data:`DIRECT_MAX_STATES`
   non-terminal states): a sparse LU factorisation (SuperLU), exact to rounding;
-* large systems (``solver="krylov"``): restarted GMRES, warm-started where a guess is
-  known, with iterative refinement until the residual satisfies
-  ||r_pi - (I - gamma P_pi) v||_inf <= (1 - gamma) * tol. Because ||(I - gamma
-  P_pi)^{-1}||_inf <= 1 / (1 - gamma) for a (sub)stochastic P_pi, this guarantees
-  max_s |v(s) - v_pi(s)| <= tol. A direct LU of a random sparse graph fills in badly
-  (it is near-dense at 10^4 states), whereas GMRES needs a few dozen sparse products
-  there, since the eigenvalues of such a P_pi other than 1 are small. If GMRES stalls
-  the solver falls back to the LU.
+* large systems (``solver="auto"`` above that size, gamma < 1): synchronous sweeps
+  v <- r_pi + gamma P_pi v, warm-started, stopped by MacQueen's bounds (the same rule
+  as value iteration) as soon as max_s |v(s) - v_pi(s)| <= tol is proven; the
+  default tol is 1e-10 times the value scale max|r| / (1 - gamma). On well-mixing
+  chains (random sparse graphs, whose P_pi has small eigenvalues besides 1) the
+  error span shrinks by gamma |lambda_2| per sweep, so a few dozen products suffice;
+  a direct LU of such a graph fills in badly (near-dense at 10^4 states).
+* slowly mixing chains (the sweeps have not finished after 60 products), gamma = 1,
+  or ``solver="krylov"``: restarted GMRES on the matrix-free operator, with
+  iterative refinement until ||r_pi - (I - gamma P_pi) v||_inf <= (1 - gamma) tol,
+  which guarantees max_s |v(s) - v_pi(s)| <= tol since ||(I - gamma P_pi)^{-1}||_inf
+  <= 1 / (1 - gamma) for a (sub)stochastic P_pi. If GMRES stalls, the sparse LU.
 
 With gamma = 1 the system is singular unless the policy reaches a terminal state with
 probability 1 from every state; the states from which it does not are named in the
@@ -39,7 +43,7 @@ from policylab.planning._checks import (
     require_terminal_reachable,
 )
 from policylab.planning._kernels import gauss_seidel_expectation_sweep, policy_matvec
-from policylab.planning._sweeps import run_sweeps
+from policylab.planning._sweeps import run_sweeps, span_bounds
 from policylab.planning.bellman import _policy_matrix, _q
 from policylab.planning.result import PlanningResult
 
@@ -138,17 +142,33 @@ def solve_policy_system(
         else:
             # no a-priori bound at gamma = 1: ask for a tiny relative residual instead
             target_res = (tol if tol is not None else KRYLOV_RTOL) * 1e-2 * max(1.0, r_max)
-        x, its, res = _gmres_refined(op, b, x0, target_res)
-        if res <= target_res:
-            info.update(
-                solver="krylov (GMRES)",
-                krylov_iterations=its,
-                residual=res,
-                error_bound=res / (1.0 - gamma) if gamma < 1.0 else None,
-            )
-        else:
-            x = None
-            info["krylov_fallback"] = f"GMRES stalled at residual {res:.3g}; used sparse LU"
+        start = x0
+        if solver == "auto" and gamma < 1.0:
+            # Sweeps with MacQueen's extrapolation first: on well-mixing chains (random
+            # graphs) they reach the target in a few dozen cheap products, with a proof.
+            xs, sweeps, bound = _macqueen_sweeps(mv, b, x0, ~mdp.terminal, gamma, target_err)
+            if bound is not None:
+                x = xs
+                res = float(np.abs(b - mv(x)).max(initial=0.0))
+                info.update(
+                    solver="sweeps (MacQueen bounds)",
+                    sweeps=sweeps,
+                    residual=res,
+                    error_bound=bound,
+                )
+            start = xs  # slow mixing: hand the sweeps' estimate to GMRES
+        if x is None:
+            xg, its, res = _gmres_refined(op, b, start, target_res)
+            if res <= target_res:
+                x = xg
+                info.update(
+                    solver="krylov (GMRES)",
+                    krylov_iterations=its,
+                    residual=res,
+                    error_bound=res / (1.0 - gamma) if gamma < 1.0 else None,
+                )
+            else:
+                info["krylov_fallback"] = f"GMRES stalled at residual {res:.3g}; used sparse LU"
     if x is None:
         M = sp.csc_array(sp.eye_array(S, format="csr") - gamma * matrix())
         x = np.asarray(spla.spsolve(M, b), dtype=np.float64)
@@ -160,6 +180,34 @@ def solve_policy_system(
         )
     x[mdp.terminal] = 0.0
     return x, info
+
+
+def _macqueen_sweeps(
+    mv: Any,
+    b: NDArray[np.float64],
+    x0: NDArray[np.float64] | None,
+    live: NDArray[np.bool_],
+    gamma: float,
+    target: float,
+    max_sweeps: int = 60,
+) -> tuple[NDArray[np.float64], int, float | None]:
+    """Sweeps x <- b + gamma P x stopped by MacQueen's bound (see ``span_bounds``).
+
+    ``mv(y) = y - gamma P y``, so b + gamma P x = b + x - mv(x). Returns the estimate,
+    the sweeps used and the proven sup-norm error bound, or None for the bound if
+    ``max_sweeps`` did not suffice (the chain mixes slowly; GMRES takes over).
+    """
+    x = np.zeros_like(b) if x0 is None else np.array(x0, dtype=np.float64)
+    has_terminal = not bool(live.all())
+    for k in range(1, max_sweeps + 1):
+        tx = b + x - mv(x)
+        tx[~live] = 0.0
+        shift, bound = span_bounds((tx - x)[live], gamma, has_terminal)
+        if bound <= target:
+            tx[live] += shift
+            return tx, k, bound
+        x = tx
+    return x, max_sweeps, None
 
 
 def _matvec(p: sp.csr_array | None, x: NDArray[np.float64]) -> NDArray[np.float64]:

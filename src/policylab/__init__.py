@@ -51,3 +51,12 @@ __all__ = [
     "returns_to_go",
     "rollout",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """Load ``policylab.deep`` (and so torch) only when first used: ``pl.deep.PPO``."""
+    if name == "deep":
+        import importlib
+
+        return importlib.import_module("policylab.deep")
+    raise AttributeError(f"module 'policylab' has no attribute {name!r}")

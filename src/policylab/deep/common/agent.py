@@ -332,6 +332,15 @@ class Agent(ABC):
             actions = self._act(torch.as_tensor(self._prepare(batch)), deterministic)
         return actions[0] if single else actions
 
+    def state_parameters(self) -> list[torch.Tensor]:
+        """Every network parameter and buffer of the agent, in a fixed order."""
+        return [
+            t
+            for v in self._state_tensors(False).values()
+            for t in v.values()
+            if isinstance(t, torch.Tensor)
+        ]
+
     # ---------------------------------------------------------- checkpoints
     def save(self, path: str | Path, *, training_state: bool = False) -> None:
         """Write the agent to ``path`` atomically (a crash leaves the old file intact).

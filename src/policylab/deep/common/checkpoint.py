@@ -74,7 +74,7 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
 def to_tensor_tree(x: Any) -> Any:
     """NumPy arrays in nested dicts/lists turned into tensors (everything else kept)."""
     if isinstance(x, np.ndarray):
-        return torch.from_numpy(np.ascontiguousarray(x))
+        return torch.from_numpy(x if x.flags.c_contiguous else x.copy(order="C"))
     if isinstance(x, dict):
         return {k: to_tensor_tree(v) for k, v in x.items()}
     if isinstance(x, list | tuple):

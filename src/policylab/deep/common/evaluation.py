@@ -17,8 +17,7 @@ __all__ = ["evaluate", "run_episodes"]
 class Predictor(Protocol):
     """Anything with ``predict(obs, deterministic=...)`` returning a batch of actions."""
 
-    def predict(self, obs: Any, deterministic: bool = True) -> Any:
-        ...
+    def predict(self, obs: Any, deterministic: bool = True) -> Any: ...
 
 
 def _seed_of(seed: int | np.random.Generator | None) -> int | None:

@@ -2,16 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 
 
 class CountingEnv(gym.Env[np.ndarray, int]):
-    """Observation [t] (the step count), reward 1 per step; terminates at ``terminate_at`` if set."""
+    """Observation [t] (the step count), reward 1 per step; terminates at ``terminate_at``."""
 
-    metadata: dict[str, Any] = {"render_modes": []}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
 
     def __init__(self, terminate_at: int | None = None) -> None:
         self.observation_space = gym.spaces.Box(0.0, 1000.0, shape=(1,), dtype=np.float32)

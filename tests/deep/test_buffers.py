@@ -100,11 +100,12 @@ def test_n_step_window_matches_hand_computed_returns() -> None:
 def test_n_step_window_termination_removes_bootstrap_and_skips_invalid() -> None:
     w = NStepWindow(2, 3, 0.9)
     res = w.push(
-        np.array([[0.0], [10.0]]), np.array([0, 1]), np.array([1.0, 5.0]), np.array([[1.0], [11.0]]),
+        np.array([[0.0], [10.0]]), np.array([0, 1]), np.array([1.0, 5.0]),
+        np.array([[1.0], [11.0]]),
         np.array([True, False]), np.array([False, False]), np.array([True, False]),
     )  # fmt: skip
     assert res is not None
-    obs, act, ret, nxt, disc = res
+    obs, _, ret, _, disc = res
     assert obs.tolist() == [[0.0]] and ret.tolist() == [1.0] and disc.tolist() == [0.0]
     assert len(w.windows[1]) == 0  # the invalid (reset) step of env 1 was not stored
 

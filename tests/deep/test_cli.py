@@ -27,7 +27,8 @@ def test_train_eval_record_resume(tmp_path: Path, capsys: pytest.CaptureFixture[
     cfg = tmp_path / "cfg.toml"
     cfg.write_text("n_envs = 2\nn_steps = 64\nn_epochs = 1\nhidden = [16, 16]\n")
     code, out, err = _run(
-        ["train", "ppo", "CartPole-v1", "--steps", "256", "--seed", "1", "--config", str(cfg), "--out", str(run),
+        ["train", "ppo", "CartPole-v1", "--steps", "256", "--seed", "1", "--config", str(cfg),
+         "--out", str(run),
          "--no-progress", "--eval-episodes", "2"],
         capsys,
     )  # fmt: skip
@@ -52,7 +53,8 @@ def test_train_eval_record_resume(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert code == 2 and "--resume" in err
 
     code, out, err = _run(
-        ["train", "ppo", "CartPole-v1", "--out", str(run), "--resume", "--steps", "512", "--no-progress",
+        ["train", "ppo", "CartPole-v1", "--out", str(run), "--resume", "--steps", "512",
+         "--no-progress",
          "--eval-episodes", "0"],
         capsys,
     )  # fmt: skip
@@ -83,5 +85,8 @@ def test_dry_run_lists_tuned_config(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_import_policylab_does_not_import_torch() -> None:
-    code = "import sys, policylab; assert 'torch' not in sys.modules; policylab.deep.PPO; assert 'torch' in sys.modules"
+    code = (
+        "import sys, policylab; assert 'torch' not in sys.modules; "
+        "policylab.deep.PPO; assert 'torch' in sys.modules"
+    )
     subprocess.run([sys.executable, "-c", code], check=True)

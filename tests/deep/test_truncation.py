@@ -52,7 +52,8 @@ def test_ppo_terminated_episodes_do_not_bootstrap() -> None:
 def test_dqn_replay_keeps_the_bootstrap_after_truncation_only() -> None:
     for terminate_at, expected in ((None, 0.9), (5, 0.0)):
         agent = pl.deep.DQN(
-            counting_vec_env(2, limit=5, terminate_at=terminate_at), n_envs=2, learning_starts=10_000,
+            counting_vec_env(2, limit=5, terminate_at=terminate_at), n_envs=2,
+            learning_starts=10_000,
             gamma=0.9, train_freq=1,
         )  # fmt: skip
         agent.learn(24)

@@ -127,7 +127,8 @@ def train_command(
             return
         if (run_dir / "checkpoint.pt").exists():
             raise InvalidArgumentError(
-                f"{str(run_dir)!r} already holds a run; pass --resume to continue it or --out for a new folder"
+                f"{str(run_dir)!r} already holds a run; pass --resume to continue it "
+                "or --out for a new folder"
             )
         agent = cls(env_id, **fields)
     agent.learn(int(total), progress=progress, run_dir=run_dir)

@@ -178,8 +178,8 @@ class Agent(ABC):
         self._ep_return = np.zeros(n)
         self._ep_length = np.zeros(n, dtype=np.int64)
         self._prev_done = np.zeros(n, dtype=bool)
-        self._obs = obs
-        return obs
+        self._obs = np.asarray(obs)
+        return self._obs
 
     def _env_step(
         self, actions: NDArray[Any]
@@ -402,7 +402,8 @@ class Agent(ABC):
         ):
             raise InvalidArgumentError(
                 f"env {agent.env_id!r} has spaces {agent._envs.single_observation_space}, "
-                f"{agent._envs.single_action_space}; the checkpoint was trained on {obs_space}, {act_space}"
+                f"{agent._envs.single_action_space}; the checkpoint was trained on "
+                f"{obs_space}, {act_space}"
             )
         agent._setup(obs_space, act_space)
         try:

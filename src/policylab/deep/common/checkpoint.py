@@ -132,7 +132,8 @@ def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[
         raise CheckpointError(f"{str(p)!r} is not a policylab checkpoint (format tag missing)")
     if doc.get("version") != VERSION:
         raise CheckpointError(
-            f"{str(p)!r} has checkpoint version {doc.get('version')!r}; this policylab reads {VERSION}"
+            f"{str(p)!r} has checkpoint version {doc.get('version')!r}; "
+            f"this policylab reads {VERSION}"
         )
     try:
         meta = json.loads(doc["meta"])

@@ -104,12 +104,14 @@ def make_vec_env(env: EnvLike, n_envs: int = 1) -> VectorEnv:
             venv = gym.vector.SyncVectorEnv([lambda: gym.make(spec) for _ in range(n_envs)])
         else:
             raise InvalidArgumentError(
-                f"n_envs={n_envs} copies need an env id or an env made with gymnasium.make (it has a "
+                f"n_envs={n_envs} copies need an env id or an env made with gymnasium.make "
+                "(it has a "
                 "spec); pass the id, a vector env, or n_envs=1"
             )
     else:
         raise InvalidArgumentError(
-            f"env must be a Gymnasium id, a gymnasium.Env or a gymnasium.vector.VectorEnv; got {type(env).__name__}"
+            "env must be a Gymnasium id, a gymnasium.Env or a gymnasium.vector.VectorEnv; "
+            f"got {type(env).__name__}"
         )
     mode_of = venv.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP)
     if mode_of != AutoresetMode.NEXT_STEP:

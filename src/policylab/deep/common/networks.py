@@ -151,7 +151,10 @@ def build_torso(
 def torso_width(torso: nn.Module) -> int:
     """The number of features a :func:`build_torso` module outputs."""
     last = torso[-1] if isinstance(torso, nn.Sequential) else torso
-    return int(last.out_dim)
+    width = getattr(last, "out_dim", None)
+    if not isinstance(width, int):
+        raise InvalidArgumentError(f"{type(last).__name__} does not say its output width (out_dim)")
+    return width
 
 
 class _OneHot(nn.Module):

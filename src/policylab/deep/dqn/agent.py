@@ -123,7 +123,7 @@ class DQN(Agent):
 
     @property
     def epsilon(self) -> float:
-        """The exploration rate now: linear from initial to final over exploration_fraction of the run."""
+        """Exploration rate now: linear from initial to final over the exploration fraction."""
         cfg = self.config
         span = cfg.exploration_fraction * max(self.target_steps, 1)
         frac = 1.0 if span == 0 else min(1.0, self.num_timesteps / span)
@@ -131,14 +131,17 @@ class DQN(Agent):
             cfg.exploration_final_eps - cfg.exploration_initial_eps
         )
 
+    @property
+    def n_actions(self) -> int:
+        """Number of discrete actions."""
+        return int(getattr(self.action_space, "n", 0))
+
     def _act(self, obs: torch.Tensor, deterministic: bool) -> NDArray[Any]:
-        greedy = self.q(obs).argmax(dim=1).numpy()
+        greedy: NDArray[Any] = self.q(obs).argmax(dim=1).numpy()
         if deterministic:
             return greedy
         explore = self.rng.random(len(greedy)) < self.epsilon
-        return np.where(
-            explore, self.rng.integers(0, int(self.action_space.n), len(greedy)), greedy
-        )  # type: ignore[attr-defined]
+        return np.where(explore, self.rng.integers(0, self.n_actions, len(greedy)), greedy)
 
     def _iteration(self) -> dict[str, float]:
         cfg = self.config
@@ -150,7 +153,7 @@ class DQN(Agent):
         while steps < cfg.train_freq:
             x = self._prepare(obs, update=True)
             if self.num_timesteps < cfg.learning_starts:
-                actions = self.rng.integers(0, int(self.action_space.n), n)  # type: ignore[attr-defined]
+                actions = self.rng.integers(0, self.n_actions, n)
             else:
                 with torch.no_grad():
                     actions = self._act(torch.as_tensor(x), deterministic=False)
@@ -194,7 +197,7 @@ class DQN(Agent):
         td = y - q
         loss = td_loss(td, torch.as_tensor(b.weights), cfg.loss)
         self.optimizer.zero_grad(set_to_none=True)
-        loss.backward()
+        loss.backward()  # type: ignore[no-untyped-call]
         torch.nn.utils.clip_grad_norm_(self.q.parameters(), cfg.max_grad_norm)
         self.optimizer.step()
         self.n_updates += 1

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import torch
-from torch.nn import functional as F
+from torch.nn import functional
 
 __all__ = ["q_learning_targets", "td_loss"]
 
@@ -39,5 +39,9 @@ def q_learning_targets(
 def td_loss(td_errors: torch.Tensor, weights: torch.Tensor, kind: str = "huber") -> torch.Tensor:
     """Importance-weighted mean of the Huber (smooth L1, delta 1) or squared TD error."""
     zeros = torch.zeros_like(td_errors)
-    per = F.smooth_l1_loss(td_errors, zeros, reduction="none") if kind == "huber" else td_errors**2
+    per = (
+        functional.smooth_l1_loss(td_errors, zeros, reduction="none")
+        if kind == "huber"
+        else td_errors**2
+    )
     return (weights * per).mean()

@@ -76,6 +76,7 @@ def evaluate(
     episodes: int = 10,
     seed: int | np.random.Generator | None = 0,
     deterministic: bool = True,
+    n_envs: int | None = None,
 ) -> NDArray[np.float64]:
     """Per-episode returns of ``agent`` acting on ``env`` (its own env id if None).
 
@@ -85,6 +86,7 @@ def evaluate(
         episodes: Number of whole episodes.
         seed: Seed of the evaluation episodes (same seed, same returns).
         deterministic: Greedy (True) or sampled (False) actions.
+        n_envs: Episodes run at a time for an env id (default min(episodes, 16)).
 
     Returns:
         (episodes,) undiscounted episode returns.

@@ -14,6 +14,7 @@ from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import NStepWindow, PrioritizedReplayBuffer, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check, documented, option
+from policylab.deep.common.networks import clip_grad_norm
 from policylab.deep.dqn.losses import q_learning_targets, td_loss
 from policylab.deep.dqn.networks import QNetwork
 
@@ -109,6 +110,7 @@ class DQN(Agent):
             self.torch_gen,
         )
         self.q_target = copy.deepcopy(self.q).requires_grad_(False)
+        self._params = list(self.q.parameters())
         self.optimizer = torch.optim.Adam(self.q.parameters(), lr=cfg.learning_rate, fused=True)
         shape = tuple(self.observation_space.shape or ())
         obs_dtype = np.uint8 if self.observation_space.dtype == np.uint8 else np.float32
@@ -189,16 +191,20 @@ class DQN(Agent):
         obs, next_obs = torch.as_tensor(b.obs), torch.as_tensor(b.next_obs)
         with torch.no_grad():
             next_target = self.q_target(next_obs)
-            next_online = self.q(next_obs) if cfg.double_q else None
-            y = q_learning_targets(
-                torch.as_tensor(b.returns), torch.as_tensor(b.discounts), next_target, next_online
-            )
-        q = self.q(obs).gather(1, torch.as_tensor(b.actions).long().unsqueeze(1)).squeeze(1)
+        if cfg.double_q:  # one pass of the online network over S and S' together
+            q_all = self.q(torch.cat([obs, next_obs]))
+            q_obs, next_online = q_all[: len(obs)], q_all[len(obs) :].detach()
+        else:
+            q_obs, next_online = self.q(obs), None
+        y = q_learning_targets(
+            torch.as_tensor(b.returns), torch.as_tensor(b.discounts), next_target, next_online
+        )
+        q = q_obs.gather(1, torch.as_tensor(b.actions).long().unsqueeze(1)).squeeze(1)
         td = y - q
         loss = td_loss(td, torch.as_tensor(b.weights), cfg.loss)
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()  # type: ignore[no-untyped-call]
-        torch.nn.utils.clip_grad_norm_(self.q.parameters(), cfg.max_grad_norm)
+        clip_grad_norm(self._params, cfg.max_grad_norm)
         self.optimizer.step()
         self.n_updates += 1
         if isinstance(self.replay, PrioritizedReplayBuffer):

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import RolloutBuffer
 from policylab.deep.common.config import check, documented, option
+from policylab.deep.common.networks import clip_grad_norm
 from policylab.deep.common.normalize import RewardScaler
 from policylab.deep.ppo.losses import clipped_surrogate_loss, normalized, value_loss
 from policylab.deep.ppo.networks import ActorCritic, action_dtype
@@ -95,6 +96,7 @@ class PPO(Agent):
             cfg.log_std_init,
             self.torch_gen,
         )
+        self._params = list(self.net.parameters())
         self.optimizer = torch.optim.Adam(
             self.net.parameters(), lr=cfg.learning_rate, eps=1e-5, fused=True
         )
@@ -170,7 +172,7 @@ class PPO(Agent):
                 loss = pg_loss + cfg.vf_coef * v_loss - cfg.ent_coef * ent
                 self.optimizer.zero_grad(set_to_none=True)
                 loss.backward()  # type: ignore[no-untyped-call]
-                torch.nn.utils.clip_grad_norm_(self.net.parameters(), cfg.max_grad_norm)
+                clip_grad_norm(self._params, cfg.max_grad_norm)
                 self.optimizer.step()
                 self.n_updates += 1
                 with torch.no_grad():

@@ -180,8 +180,18 @@ ZOO: dict[str, dict[str, dict[str, Any]]] = {
 # policylab's own changes on top of the zoo (same keys). SB3's DQN is vanilla DQN;
 # policylab's default is Double DQN (DQNConfig.double_q).
 TUNED: dict[str, dict[str, dict[str, Any]]] = {
-    "ppo": {},
-    "dqn": {},
+    "ppo": {
+        # ReLU instead of tanh: torch's tanh costs ~15x a ReLU on this CPU and ReLU learns
+        # CartPole as fast; 16 envs x 16 steps keeps the zoo's 256-step rollouts with half
+        # the policy forward passes.
+        "CartPole-v1": dict(activation="relu", n_envs=16, n_steps=16),
+    },
+    "dqn": {
+        # The zoo's 128 gradient steps of batch 64 every 256 env steps cost most of SB3's
+        # time; 32 steps of batch 512 on a 64x64 ReLU network replay as many samples in a
+        # quarter of the steps, and 8 envs cut the acting forward passes 8-fold.
+        "CartPole-v1": dict(n_envs=8, hidden=(64, 64), batch_size=512, gradient_steps=32),
+    },
 }
 
 

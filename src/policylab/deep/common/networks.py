@@ -166,7 +166,7 @@ class _OneHot(nn.Module):
         return nn.functional.one_hot(x.long().reshape(-1), self.n).float()
 
 
-def clip_grad_norm(params: list[torch.Tensor], max_norm: float) -> float:
+def clip_grad_norm(params: Sequence[torch.Tensor], max_norm: float) -> float:
     """Scale the gradients of ``params`` so that their global L2 norm is at most ``max_norm``.
 
     g <- g * min(1, max_norm / (||g||_2 + 1e-6)), with ||g||_2 over all gradients

@@ -119,3 +119,40 @@ def test_rollout_minibatches_cover_valid_steps_once() -> None:
     assert buf.full
     idx = np.concatenate(list(buf.minibatches(3, np.random.default_rng(0))))
     assert sorted(idx.tolist()) == [0, 1, 2, 3, 4, 6, 7]  # flat index 5 = (t=2, env 1) is invalid
+
+
+def test_n_step_window_over_many_envs_matches_per_trajectory_targets() -> None:
+    from policylab.deep import n_step_targets
+
+    rng = np.random.default_rng(0)
+    N, T, n, g = 3, 40, 3, 0.9
+    rewards = rng.normal(size=(T, N))
+    term = rng.random((T, N)) < 0.1
+    trunc = ~term & (rng.random((T, N)) < 0.1)
+    w = NStepWindow(N, n, g)
+    got: dict[tuple[int, int], tuple[float, float, float]] = {}
+    valid = np.ones(N, dtype=bool)
+    for t in range(T):
+        obs = np.stack([np.array([t, i], dtype=np.float32) for i in range(N)])
+        nxt = obs + np.array([1, 0], dtype=np.float32)
+        res = w.push(obs, np.zeros(N, int), rewards[t], nxt, term[t], trunc[t], valid)
+        if res is not None:
+            for o, _, ret, no, d in zip(*res, strict=True):
+                got[(int(o[0]), int(o[1]))] = (float(ret), float(d), float(no[0]))
+        valid = ~(term[t] | trunc[t])  # the next step of an env that ended is an autoreset step
+    for i in range(N):
+        # the same env's steps with the autoreset steps removed, as one trajectory
+        steps = [t for t in range(T) if t == 0 or not (term[t - 1, i] or trunc[t - 1, i])]
+        ret, disc, last = n_step_targets(rewards[steps, i], term[steps, i], trunc[steps, i], g, n)
+        for k, t in enumerate(steps):
+            complete = (
+                last[k] < len(steps) - 1
+                or term[steps[last[k]], i]
+                or trunc[steps[last[k]], i]
+                or (last[k] - k + 1 == n)
+            )
+            if not complete:
+                continue
+            assert got[(t, i)][0] == pytest.approx(ret[k])
+            assert got[(t, i)][1] == pytest.approx(disc[k])
+            assert got[(t, i)][2] == steps[last[k]] + 1

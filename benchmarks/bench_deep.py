@@ -216,6 +216,7 @@ def main() -> None:
     ap.add_argument("--envs", default="CartPole-v1")
     ap.add_argument("--algos", default="ppo,dqn")
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--section", default="Deep RL")
     args = ap.parse_args()
     torch.set_num_threads(1)
     results: list[Result] = []
@@ -274,7 +275,7 @@ def main() -> None:
         from _report import write_section
 
         write_section(
-            "Deep RL",
+            args.section,
             f"python benchmarks/bench_deep.py --seeds {args.seeds} --envs {args.envs} "
             f"--algos {args.algos}",
             body + notes,

@@ -18,15 +18,16 @@ from policylab.exceptions import InvalidArgumentError
 
 __all__ = ["register"]
 
-_TRAIN_HELP = """Train a deep RL agent (ALGO: ppo or dqn) on a Gymnasium environment.
-
-Starts from tuned defaults for the environment (rl-baselines3-zoo's for classic control,
-Box2D and Atari), so `policylab train ppo CartPole-v1` solves CartPole with no other flag.
-The run folder (--out) gets run.json, progress.csv, TensorBoard events (tb/) and
-checkpoint.pt, which `policylab eval` and `policylab record` read and --resume continues.
-Config fields (a JSON or TOML table in --config, or --set FIELD=VALUE) are those of
-policylab.deep.PPOConfig / DQNConfig; --dry-run lists them with their values.
-"""
+_TRAIN_HELP = (
+    "Train a deep RL agent (ALGO: ppo or dqn) on a Gymnasium environment.\n\n"
+    "Starts from tuned defaults for the environment (rl-baselines3-zoo's settings for classic "
+    "control, Box2D and Atari, see policylab.deep.zoo), so `policylab train ppo CartPole-v1` "
+    "solves CartPole with no other flag.\n\n"
+    "The run folder (--out) gets run.json, progress.csv, TensorBoard events (tb/) and "
+    "checkpoint.pt, which `policylab eval` and `policylab record` read and --resume continues.\n\n"
+    "Config fields (a JSON or TOML table in --config, or --set FIELD=VALUE) are those of "
+    "policylab.deep.PPOConfig / DQNConfig; --dry-run lists them with their values and meaning."
+)
 
 
 def _parse_set(items: list[str]) -> dict[str, Any]:
@@ -86,8 +87,6 @@ def train_command(
         bool, typer.Option("--progress/--no-progress", help="Show the progress bar.")
     ] = True,
 ) -> None:
-    import dataclasses
-
     import numpy as np
 
     from policylab.deep.common.config import config_help, load_config_file
@@ -150,7 +149,6 @@ def train_command(
         )
     table.add_row("run folder", str(run_dir))
     console.print(table)
-    _ = dataclasses  # config dataclasses are printed by --dry-run
 
 
 def eval_command(

@@ -193,7 +193,11 @@ TUNED: dict[str, dict[str, dict[str, Any]]] = {
         # is 100k steps (the zoo's 50k often ends just before DQN's policy settles); epsilon
         # decays over the same 8k steps as in the zoo.
         "CartPole-v1": dict(
-            steps=100_000, exploration_fraction=0.08, n_envs=8, hidden=(64, 64), batch_size=512,
+            steps=100_000,
+            exploration_fraction=0.08,
+            n_envs=8,
+            hidden=(64, 64),
+            batch_size=512,
             gradient_steps=32,
         ),
     },

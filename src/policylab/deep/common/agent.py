@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable
@@ -72,6 +73,9 @@ class BaseConfig:
     checkpoint_every: int = option(
         0, "With a run folder: save a checkpoint every this many steps (0: at the end only)."
     )
+    log_interval: int = option(
+        1000, "With a run folder: env steps between rows of progress.csv and TensorBoard points."
+    )
 
     def validate(self) -> None:
         """Raise InvalidArgumentError on values out of range."""
@@ -81,6 +85,7 @@ class BaseConfig:
         check(all(h >= 1 for h in self.hidden), f"hidden sizes must be >= 1; got {self.hidden}")
         check(self.max_grad_norm > 0, f"max_grad_norm must be > 0; got {self.max_grad_norm}")
         check(self.torch_threads >= 0, f"torch_threads must be >= 0; got {self.torch_threads}")
+        check(self.log_interval >= 1, f"log_interval must be >= 1; got {self.log_interval}")
         check(
             self.checkpoint_every >= 0,
             f"checkpoint_every must be >= 0; got {self.checkpoint_every}",
@@ -257,6 +262,8 @@ class Agent(ABC):
             self._write_run_json(Path(run_dir))
         every = self.config.checkpoint_every
         next_ckpt = (self.num_timesteps // every + 1) * every if every else None
+        next_log = self.num_timesteps
+        shown = 0.0
         try:
             with (
                 self._threads(),
@@ -274,9 +281,14 @@ class Agent(ABC):
                     metrics["episodes"] = float(self.episodes)
                     metrics["recent_return"] = self.recent_mean_return()  # type: ignore[assignment]
                     metrics["steps_per_second"] = bar.steps_per_second(self.num_timesteps)
-                    bar.update(self.num_timesteps, metrics["recent_return"])
-                    if logger is not None:
+                    now = time.perf_counter()
+                    last = self.num_timesteps >= self.target_steps
+                    if now - shown > 0.1 or last:
+                        bar.update(self.num_timesteps, metrics["recent_return"])
+                        shown = now
+                    if logger is not None and (self.num_timesteps >= next_log or last):
                         logger.log(self.num_timesteps, metrics)
+                        next_log = self.num_timesteps + self.config.log_interval
                     if (
                         run_dir is not None
                         and next_ckpt is not None

@@ -58,6 +58,7 @@ class _Exploit:
         return (os.system, (f"touch {self.marker}",))
 
 
+@pytest.mark.filterwarnings("ignore:Detected pickle protocol")
 def test_checkpoint_that_runs_code_on_load_is_refused(tmp_path: Path) -> None:
     marker = tmp_path / "pwned"
     # a torch-format file whose payload unpickles to os.system(...)

@@ -77,3 +77,12 @@ __all__ = [
     "rollout",
     "value_iteration",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """Load ``policylab.deep`` (and so torch) only when first used: ``pl.deep.PPO``."""
+    if name == "deep":
+        import importlib
+
+        return importlib.import_module("policylab.deep")
+    raise AttributeError(f"module 'policylab' has no attribute {name!r}")

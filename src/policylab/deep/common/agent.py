@@ -1,0 +1,462 @@
+"""What every deep agent shares: envs, seeding, the training loop, predict, save/load, resume.
+
+An algorithm subclasses :class:`Agent` and writes four things: ``_build`` (networks and
+optimizer), ``_iteration`` (collect experience and update, returning metrics),
+``_act`` (actions for a batch of prepared observations) and the state it adds to a
+checkpoint. The loop, logging, progress bar, checkpoints and episode bookkeeping live
+here once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from abc import ABC, abstractmethod
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, ClassVar, TypeVar
+
+import gymnasium as gym
+import numpy as np
+import torch
+from gymnasium.vector import VectorEnv
+from numpy.typing import NDArray
+
+from policylab.deep.common.checkpoint import (
+    atomic_write_bytes,
+    load_checkpoint,
+    save_checkpoint,
+    to_numpy_tree,
+)
+from policylab.deep.common.config import check, config_from_dict, option
+from policylab.deep.common.envs import (
+    EnvLike,
+    env_id_of,
+    make_vec_env,
+    space_from_json,
+    space_to_json,
+)
+from policylab.deep.common.logging import RunLogger, TrainingProgress
+from policylab.deep.common.normalize import ObservationNormalizer
+from policylab.exceptions import CheckpointError, InvalidArgumentError
+
+__all__ = ["Agent", "BaseConfig", "Callback"]
+
+A = TypeVar("A", bound="Agent")
+Callback = Callable[["Agent", dict[str, float]], bool | None]
+"""Called after every training iteration with the agent and that iteration's metrics;
+returning False stops training."""
+
+CHECKPOINT = "checkpoint.pt"
+RUN_JSON = "run.json"
+
+
+@dataclasses.dataclass
+class BaseConfig:
+    """Settings every deep agent has."""
+
+    seed: int = option(
+        0, "Seed of every random choice: weights, env resets, exploration, minibatches."
+    )
+    n_envs: int = option(1, "Number of environments stepped in parallel (a gymnasium.vector env).")
+    gamma: float = option(0.99, "Discount rate gamma of the return.")
+    learning_rate: float = option(3e-4, "Adam step size (its start value when annealed).")
+    hidden: tuple[int, ...] = option((64, 64), "Hidden layer sizes of the MLP networks.")
+    activation: str = option("tanh", "Activation of the MLP hidden layers: tanh, relu or elu.")
+    normalize_obs: bool = option(False, "Normalise observations by their running mean and std.")
+    max_grad_norm: float = option(10.0, "Clip the global gradient norm to this value.")
+    torch_threads: int = option(
+        1, "Torch CPU threads (1 is fastest for small networks); 0 keeps torch's."
+    )
+    checkpoint_every: int = option(
+        0, "With a run folder: save a checkpoint every this many steps (0: at the end only)."
+    )
+    log_interval: int = option(
+        1000, "With a run folder: env steps between rows of progress.csv and TensorBoard points."
+    )
+
+    def validate(self) -> None:
+        """Raise InvalidArgumentError on values out of range."""
+        check(self.n_envs >= 1, f"n_envs must be >= 1; got {self.n_envs}")
+        check(0.0 <= self.gamma <= 1.0, f"gamma must be in [0, 1]; got {self.gamma}")
+        check(self.learning_rate > 0, f"learning_rate must be > 0; got {self.learning_rate}")
+        check(all(h >= 1 for h in self.hidden), f"hidden sizes must be >= 1; got {self.hidden}")
+        check(self.max_grad_norm > 0, f"max_grad_norm must be > 0; got {self.max_grad_norm}")
+        check(self.torch_threads >= 0, f"torch_threads must be >= 0; got {self.torch_threads}")
+        check(self.log_interval >= 1, f"log_interval must be >= 1; got {self.log_interval}")
+        check(
+            self.checkpoint_every >= 0,
+            f"checkpoint_every must be >= 0; got {self.checkpoint_every}",
+        )
+
+
+class Agent(ABC):
+    """A deep RL agent on a Gymnasium environment.
+
+    Args:
+        env: A Gymnasium id (``"CartPole-v1"``), a ``gymnasium.Env``, or a vector env.
+        config: A config of the algorithm's class; keyword arguments override its fields.
+        **overrides: Config fields by name (``PPO("CartPole-v1", n_envs=8)``).
+    """
+
+    algo: ClassVar[str]
+    config_class: ClassVar[type[BaseConfig]]
+    config: Any
+
+    def __init__(self, env: EnvLike, config: BaseConfig | None = None, **overrides: Any) -> None:
+        if config is not None and not isinstance(config, self.config_class):
+            raise InvalidArgumentError(
+                f"config must be a {self.config_class.__name__}; got {type(config).__name__}"
+            )
+        self.config = config_from_dict(self.config_class, overrides, base=config)
+        self.env_id = env_id_of(env)
+        self._envs: VectorEnv | None = make_vec_env(env, self.config.n_envs)
+        self._setup(self._envs.single_observation_space, self._envs.single_action_space)
+
+    # ----------------------------------------------------------------- set-up
+    def _setup(self, observation_space: gym.Space[Any], action_space: gym.Space[Any]) -> None:
+        self.observation_space, self.action_space = observation_space, action_space
+        self.num_timesteps = 0
+        self.target_steps = 0
+        self.n_updates = 0
+        self.episodes = 0
+        self.recent_returns: deque[float] = deque(maxlen=100)
+        self.rng = np.random.default_rng(self.config.seed)
+        self.torch_gen = torch.Generator().manual_seed(int(self.rng.integers(2**62)))
+        self.obs_normalizer = (
+            ObservationNormalizer(tuple(observation_space.shape or ()))
+            if self.config.normalize_obs
+            else None
+        )
+        self._obs: NDArray[Any] | None = None
+        with self._threads():
+            self._build()
+
+    def _threads(self) -> _TorchThreads:
+        return _TorchThreads(self.config.torch_threads)
+
+    @property
+    def envs(self) -> VectorEnv:
+        """The training vector env (re-made from ``env_id`` for a loaded agent)."""
+        if self._envs is None:
+            if self.env_id is None:
+                raise InvalidArgumentError(
+                    "this agent was loaded without an env id; pass env= to load()"
+                )
+            self._envs = make_vec_env(self.env_id, self.config.n_envs)
+        return self._envs
+
+    @abstractmethod
+    def _build(self) -> None:
+        """Create networks, optimizer and buffers."""
+
+    @abstractmethod
+    def _iteration(self) -> dict[str, float]:
+        """Collect experience and update once; return this iteration's metrics."""
+
+    @abstractmethod
+    def _act(self, obs: torch.Tensor, deterministic: bool) -> NDArray[Any]:
+        """Actions (NumPy, env format) for a batch of prepared observations."""
+
+    @abstractmethod
+    def _state_tensors(self, training_state: bool) -> dict[str, Any]:
+        """Network (and optimizer, if ``training_state``) state for a checkpoint."""
+
+    @abstractmethod
+    def _load_state_tensors(self, tensors: dict[str, Any]) -> None:
+        """Restore what :meth:`_state_tensors` gave."""
+
+    # ------------------------------------------------------------ env helpers
+    def _prepare(self, obs: NDArray[Any], update: bool = False) -> NDArray[Any]:
+        """Observations as the networks see them (normalised if configured)."""
+        if self.obs_normalizer is not None:
+            return self.obs_normalizer(obs, update=update)
+        if obs.dtype == np.float64:
+            return obs.astype(np.float32)
+        return obs
+
+    def _reset_envs(self) -> NDArray[Any]:
+        n = self.envs.num_envs
+        obs, _ = self.envs.reset(seed=int(self.rng.integers(2**31 - 1)))
+        self._ep_return = np.zeros(n)
+        self._ep_length = np.zeros(n, dtype=np.int64)
+        self._prev_done = np.zeros(n, dtype=bool)
+        self._obs = np.asarray(obs)
+        return self._obs
+
+    def _env_step(
+        self, actions: NDArray[Any]
+    ) -> tuple[NDArray[Any], NDArray[Any], NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+        """Step the envs; returns (next_obs, rewards, terminated, truncated, valid).
+
+        Under next-step autoreset an env whose episode ended on the previous step only
+        resets on this one: ``valid`` is False for it (its step is no transition), and
+        its returned observation is the first of its next episode. For an env that ends
+        on this step, ``next_obs`` is the last observation of the episode, so a
+        truncated step can be bootstrapped from it.
+        """
+        env_actions = actions
+        if isinstance(self.action_space, gym.spaces.Box):
+            env_actions = np.clip(actions, self.action_space.low, self.action_space.high)
+        next_obs, rew, term, trunc, _ = self.envs.step(env_actions)
+        valid = ~self._prev_done
+        rew = np.asarray(rew, dtype=np.float64)
+        term, trunc = np.asarray(term, dtype=bool) & valid, np.asarray(trunc, dtype=bool) & valid
+        self._ep_return[valid] += rew[valid]
+        self._ep_length[valid] += 1
+        done = term | trunc
+        for i in np.flatnonzero(done):
+            self.recent_returns.append(float(self._ep_return[i]))
+            self.episodes += 1
+        self._ep_return[done] = 0.0
+        self._ep_length[done] = 0
+        self._prev_done = done
+        self.num_timesteps += int(valid.sum())
+        self._obs = next_obs
+        return next_obs, rew, term, trunc, valid
+
+    @property
+    def progress_remaining(self) -> float:
+        """1 at the start of training, 0 at ``target_steps`` (for annealed schedules)."""
+        if self.target_steps <= 0:
+            return 1.0
+        return max(0.0, 1.0 - self.num_timesteps / self.target_steps)
+
+    def recent_mean_return(self) -> float | None:
+        """Mean return of the last (up to) 100 training episodes, or None before the first."""
+        return float(np.mean(self.recent_returns)) if self.recent_returns else None
+
+    # -------------------------------------------------------------- training
+    def learn(
+        self: A,
+        total_steps: int,
+        callback: Callback | None = None,
+        *,
+        progress: bool = False,
+        run_dir: str | Path | None = None,
+    ) -> A:
+        """Train until the agent has taken ``total_steps`` env steps in all.
+
+        A fresh agent trains ``total_steps`` steps; a loaded or resumed agent continues
+        from its own step count, so annealed schedules end where they would have.
+
+        Args:
+            total_steps: Env steps (summed over the parallel envs) to train up to.
+            callback: Called after every iteration with ``(agent, metrics)``; returning
+                False stops training early.
+            progress: Draw a rich progress bar with steps/s and the recent return.
+            run_dir: A folder for ``progress.csv``, TensorBoard events (``tb/``),
+                ``run.json`` and ``checkpoint.pt`` (saved every ``checkpoint_every``
+                steps and at the end, with everything :meth:`resume` needs).
+
+        Returns:
+            The agent itself.
+        """
+        if int(total_steps) != total_steps or total_steps < 1:
+            raise InvalidArgumentError(f"total_steps must be an integer >= 1; got {total_steps!r}")
+        self.target_steps = int(total_steps)
+        logger = RunLogger(run_dir) if run_dir is not None else None
+        if run_dir is not None:
+            self._write_run_json(Path(run_dir))
+        every = self.config.checkpoint_every
+        next_ckpt = (self.num_timesteps // every + 1) * every if every else None
+        next_log = self.num_timesteps
+        shown = 0.0
+        try:
+            with (
+                self._threads(),
+                TrainingProgress(
+                    self.target_steps,
+                    start=self.num_timesteps,
+                    enabled=progress,
+                    description=f"{self.algo} {self.env_id or ''}",
+                ) as bar,
+            ):
+                if self._obs is None:
+                    self._reset_envs()
+                while self.num_timesteps < self.target_steps:
+                    metrics = self._iteration()
+                    metrics["episodes"] = float(self.episodes)
+                    metrics["recent_return"] = self.recent_mean_return()  # type: ignore[assignment]
+                    metrics["steps_per_second"] = bar.steps_per_second(self.num_timesteps)
+                    now = time.perf_counter()
+                    last = self.num_timesteps >= self.target_steps
+                    if now - shown > 0.1 or last:
+                        bar.update(self.num_timesteps, metrics["recent_return"])
+                        shown = now
+                    if logger is not None and (self.num_timesteps >= next_log or last):
+                        logger.log(self.num_timesteps, metrics)
+                        next_log = self.num_timesteps + self.config.log_interval
+                    if (
+                        run_dir is not None
+                        and next_ckpt is not None
+                        and self.num_timesteps >= next_ckpt
+                    ):
+                        self.save(Path(run_dir) / CHECKPOINT, training_state=True)
+                        next_ckpt = (self.num_timesteps // every + 1) * every
+                    if callback is not None and callback(self, metrics) is False:
+                        break
+        finally:
+            if logger is not None:
+                logger.close()
+        if run_dir is not None:
+            self.save(Path(run_dir) / CHECKPOINT, training_state=True)
+        return self
+
+    def _write_run_json(self, run_dir: Path) -> None:
+        doc = {
+            "algo": self.algo, "env_id": self.env_id, "total_steps": self.target_steps,
+            "config": _jsonable(dataclasses.asdict(self.config)),
+        }  # fmt: skip
+        atomic_write_bytes(run_dir / RUN_JSON, (json.dumps(doc, indent=2) + "\n").encode())
+
+    @classmethod
+    def resume(cls: type[A], run_dir: str | Path, env: EnvLike | None = None) -> A:
+        """The agent of a run folder, from its last checkpoint, ready to ``learn`` on.
+
+        ``agent.learn(agent.target_steps, run_dir=run_dir)`` finishes the run; episodes
+        in progress at the checkpoint are restarted.
+        """
+        return cls.load(Path(run_dir) / CHECKPOINT, env=env)
+
+    # ------------------------------------------------------------- acting
+    def predict(self, obs: Any, deterministic: bool = True) -> NDArray[Any]:
+        """Actions for one observation or a batch of them.
+
+        Args:
+            obs: One observation of the env's observation space, or a batch (first axis).
+            deterministic: The greedy action (True) or one sampled from the policy.
+
+        Returns:
+            One action for one observation, else an array of actions.
+        """
+        o = np.asarray(obs)
+        shape = tuple(self.observation_space.shape or ())
+        single = o.shape == shape
+        if not single and o.shape[1:] != shape:
+            raise InvalidArgumentError(
+                f"obs must have shape {shape} (one) or (batch, *{shape}); got {o.shape}"
+            )
+        batch = o[None] if single else o
+        with torch.no_grad(), self._threads():
+            actions = self._act(torch.as_tensor(self._prepare(batch)), deterministic)
+        return actions[0] if single else actions
+
+    def state_parameters(self) -> list[torch.Tensor]:
+        """Every network parameter and buffer of the agent, in a fixed order."""
+        return [
+            t
+            for v in self._state_tensors(False).values()
+            for t in v.values()
+            if isinstance(t, torch.Tensor)
+        ]
+
+    # ---------------------------------------------------------- checkpoints
+    def save(self, path: str | Path, *, training_state: bool = False) -> None:
+        """Write the agent to ``path`` atomically (a crash leaves the old file intact).
+
+        Args:
+            path: The checkpoint file (conventionally ``*.pt``).
+            training_state: Also save what continuing training needs beyond the
+                weights (optimizer, replay buffer); :meth:`learn` does for run folders.
+        """
+        meta = {
+            "algo": self.algo,
+            "env_id": self.env_id,
+            "config": _jsonable(dataclasses.asdict(self.config)),
+            "observation_space": space_to_json(self.observation_space),
+            "action_space": space_to_json(self.action_space),
+            "num_timesteps": self.num_timesteps,
+            "target_steps": self.target_steps,
+            "n_updates": self.n_updates,
+            "episodes": self.episodes,
+            "recent_returns": list(self.recent_returns),
+            "rng_state": self.rng.bit_generator.state,
+            "training_state": training_state,
+        }
+        tensors: dict[str, Any] = {"model": self._state_tensors(training_state)}
+        tensors["torch_generator"] = self.torch_gen.get_state()
+        if self.obs_normalizer is not None:
+            tensors["obs_normalizer"] = self.obs_normalizer.rms.state_dict()
+        save_checkpoint(path, meta, tensors)
+
+    @classmethod
+    def load(cls: type[A], path: str | Path, env: EnvLike | None = None) -> A:
+        """An agent from a checkpoint written by :meth:`save`.
+
+        Args:
+            path: The checkpoint file.
+            env: The env to continue training on; None re-makes it from the saved id
+                when needed (``predict`` needs no env).
+
+        Raises:
+            CheckpointError: If the file is missing, unsafe, corrupt, or of another algorithm.
+        """
+        meta, tensors = load_checkpoint(path)
+        if meta.get("algo") != cls.algo:
+            raise CheckpointError(
+                f"{str(path)!r} holds a {meta.get('algo')!r} agent, not {cls.algo!r}"
+            )
+        try:
+            agent = cls.__new__(cls)
+            agent.config = config_from_dict(cls.config_class, meta["config"])
+            agent.env_id = meta["env_id"] if env is None else env_id_of(env)
+            agent._envs = None if env is None else make_vec_env(env, agent.config.n_envs)
+            obs_space = space_from_json(meta["observation_space"])
+            act_space = space_from_json(meta["action_space"])
+        except (KeyError, TypeError, InvalidArgumentError) as e:
+            raise CheckpointError(f"{str(path)!r} has a malformed description: {e}") from None
+        if agent._envs is not None and (
+            agent._envs.single_observation_space.shape != obs_space.shape
+            or agent._envs.single_action_space != act_space
+        ):
+            raise InvalidArgumentError(
+                f"env {agent.env_id!r} has spaces {agent._envs.single_observation_space}, "
+                f"{agent._envs.single_action_space}; the checkpoint was trained on "
+                f"{obs_space}, {act_space}"
+            )
+        agent._setup(obs_space, act_space)
+        try:
+            agent._load_state_tensors(tensors["model"])
+            agent.torch_gen.set_state(tensors["torch_generator"])
+            if agent.obs_normalizer is not None:
+                agent.obs_normalizer.rms.load_state_dict(to_numpy_tree(tensors["obs_normalizer"]))
+            agent.num_timesteps = int(meta["num_timesteps"])
+            agent.target_steps = int(meta["target_steps"])
+            agent.n_updates = int(meta["n_updates"])
+            agent.episodes = int(meta["episodes"])
+            agent.recent_returns.extend(float(x) for x in meta["recent_returns"])
+            agent.rng.bit_generator.state = meta["rng_state"]
+        except (KeyError, RuntimeError, ValueError, TypeError) as e:
+            raise CheckpointError(
+                f"{str(path)!r} does not fit a {cls.algo} agent: {type(e).__name__}: {e}"
+            ) from None
+        return agent
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, tuple):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    return x
+
+
+class _TorchThreads:
+    """Set torch's CPU thread count for a block, restoring it after (0 leaves it alone)."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.old = 0
+
+    def __enter__(self) -> None:
+        if self.n:
+            self.old = torch.get_num_threads()
+            if self.old != self.n:
+                torch.set_num_threads(self.n)
+
+    def __exit__(self, *exc: object) -> None:
+        if self.n and self.old and self.old != self.n:
+            torch.set_num_threads(self.old)

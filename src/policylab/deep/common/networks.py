@@ -1,0 +1,182 @@
+"""Neural networks of the deep agents: an MLP and the Nature DQN convolutional torso.
+
+Every constructor takes a ``torch.Generator`` for its initial weights, so that a seed
+fixes the network without touching torch's global random state.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import gymnasium as gym
+import numpy as np
+import torch
+from torch import nn
+
+from policylab.exceptions import InvalidArgumentError
+
+__all__ = ["MLP", "NatureCNN", "build_torso", "clip_grad_norm", "init_layer", "is_image_space"]
+
+_ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
+
+
+def init_layer(layer: nn.Module, gain: float, generator: torch.Generator | None) -> nn.Module:
+    """Orthogonal weights scaled by ``gain`` and zero biases (the PPO/DQN custom)."""
+    if isinstance(layer, nn.Linear | nn.Conv2d):
+        nn.init.orthogonal_(layer.weight, gain=gain, generator=generator)
+        if layer.bias is not None:
+            nn.init.zeros_(layer.bias)
+    return layer
+
+
+def activation(name: str) -> type[nn.Module]:
+    """The activation module class named ``name`` (tanh, relu, elu)."""
+    try:
+        return _ACTIVATIONS[name]
+    except KeyError:
+        raise InvalidArgumentError(
+            f"activation must be one of {sorted(_ACTIVATIONS)}; got {name!r}"
+        ) from None
+
+
+class MLP(nn.Sequential):
+    """A multilayer perceptron: Linear, activation, ..., Linear (no final activation).
+
+    Args:
+        in_dim: Input features.
+        hidden: Sizes of the hidden layers (may be empty).
+        out_dim: Output features; None ends with the last hidden layer's activation.
+        act: Activation name (tanh, relu, elu).
+        out_gain: Orthogonal gain of the output layer (0.01 for a policy head, 1 for a value).
+        generator: Generator of the initial weights.
+    """
+
+    def __init__(
+        self,
+        in_dim: int,
+        hidden: Sequence[int],
+        out_dim: int | None,
+        act: str = "tanh",
+        out_gain: float = 1.0,
+        generator: torch.Generator | None = None,
+    ) -> None:
+        layers: list[nn.Module] = []
+        act_cls = activation(act)
+        d = in_dim
+        for h in hidden:
+            layers += [init_layer(nn.Linear(d, h), math.sqrt(2), generator), act_cls()]
+            d = h
+        if out_dim is not None:
+            layers.append(init_layer(nn.Linear(d, out_dim), out_gain, generator))
+            d = out_dim
+        super().__init__(*layers)
+        self.out_dim = d
+
+
+class NatureCNN(nn.Module):
+    """The convolutional torso of Mnih et al. (2015): 3 conv layers and a 512-unit layer.
+
+    Input: (B, C, 84, 84) uint8 frames (C stacked grey frames), scaled to [0, 1] here.
+
+    Args:
+        in_channels: Number of stacked frames C.
+        image_size: Height and width of the frames (84 in the paper).
+        features: Width of the last, fully connected layer.
+        generator: Generator of the initial weights.
+    """
+
+    def __init__(
+        self,
+        in_channels: int,
+        image_size: tuple[int, int] = (84, 84),
+        features: int = 512,
+        generator: torch.Generator | None = None,
+    ) -> None:
+        super().__init__()
+        g = math.sqrt(2)
+        self.conv = nn.Sequential(
+            init_layer(nn.Conv2d(in_channels, 32, 8, stride=4), g, generator),
+            nn.ReLU(),
+            init_layer(nn.Conv2d(32, 64, 4, stride=2), g, generator),
+            nn.ReLU(),
+            init_layer(nn.Conv2d(64, 64, 3, stride=1), g, generator),
+            nn.ReLU(),
+            nn.Flatten(),
+        )
+        with torch.no_grad():
+            n = self.conv(torch.zeros(1, in_channels, *image_size)).shape[1]
+        self.fc = nn.Sequential(init_layer(nn.Linear(n, features), g, generator), nn.ReLU())
+        self.out_dim = features
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Features of a batch of frame stacks."""
+        out: torch.Tensor = self.fc(self.conv(x.float() / 255.0))
+        return out
+
+
+def is_image_space(space: gym.Space[object]) -> bool:
+    """Whether observations are stacked images: a uint8 Box of shape (C, H, W)."""
+    return isinstance(space, gym.spaces.Box) and space.dtype == np.uint8 and len(space.shape) == 3
+
+
+def build_torso(
+    space: gym.Space[object],
+    hidden: Sequence[int],
+    act: str,
+    generator: torch.Generator | None,
+) -> nn.Module:
+    """The feature extractor for an observation space; ``.out_dim`` is its width.
+
+    A (C, H, W) uint8 image gets a :class:`NatureCNN`; a flat Box gets an :class:`MLP`
+    with the given hidden layers; a Discrete space is one-hot encoded first.
+    """
+    if is_image_space(space):
+        assert isinstance(space, gym.spaces.Box)
+        c, h, w = space.shape
+        return NatureCNN(c, (h, w), generator=generator)
+    if isinstance(space, gym.spaces.Discrete):
+        return nn.Sequential(
+            _OneHot(int(space.n)), MLP(int(space.n), hidden, None, act, generator=generator)
+        )
+    if isinstance(space, gym.spaces.Box):
+        return nn.Sequential(
+            nn.Flatten(), MLP(int(np.prod(space.shape)), hidden, None, act, generator=generator)
+        )
+    raise InvalidArgumentError(
+        f"observation space must be a Box (vectors or uint8 images) or Discrete; got {space}"
+    )
+
+
+def torso_width(torso: nn.Module) -> int:
+    """The number of features a :func:`build_torso` module outputs."""
+    last = torso[-1] if isinstance(torso, nn.Sequential) else torso
+    width = getattr(last, "out_dim", None)
+    if not isinstance(width, int):
+        raise InvalidArgumentError(f"{type(last).__name__} does not say its output width (out_dim)")
+    return width
+
+
+class _OneHot(nn.Module):
+    def __init__(self, n: int) -> None:
+        super().__init__()
+        self.n = n
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return nn.functional.one_hot(x.long().reshape(-1), self.n).float()
+
+
+def clip_grad_norm(params: Sequence[torch.Tensor], max_norm: float) -> float:
+    """Scale the gradients of ``params`` so that their global L2 norm is at most ``max_norm``.
+
+    g <- g * min(1, max_norm / (||g||_2 + 1e-6)), with ||g||_2 over all gradients
+    together (what ``torch.nn.utils.clip_grad_norm_`` does, with less per-call
+    overhead for the small networks of classic control). Returns the norm before clipping.
+    """
+    grads = [p.grad for p in params if p.grad is not None]
+    if not grads:
+        return 0.0
+    norm = torch.linalg.vector_norm(torch.stack(torch._foreach_norm(grads)))
+    coef = torch.clamp(max_norm / (norm + 1e-6), max=1.0)
+    torch._foreach_mul_(grads, coef)
+    return float(norm)

@@ -1,0 +1,239 @@
+"""Deep Q-networks with Double DQN, dueling heads, n-step returns and prioritized replay."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from typing import Any
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+
+from policylab.deep.common.agent import Agent, BaseConfig
+from policylab.deep.common.buffers import NStepWindow, PrioritizedReplayBuffer, ReplayBuffer
+from policylab.deep.common.checkpoint import to_numpy_tree
+from policylab.deep.common.config import check, documented, option
+from policylab.deep.common.networks import clip_grad_norm
+from policylab.deep.dqn.losses import q_learning_targets, td_loss
+from policylab.deep.dqn.networks import QNetwork
+
+__all__ = ["DQN", "DQNConfig"]
+
+
+@documented
+@dataclasses.dataclass
+class DQNConfig(BaseConfig):
+    """Hyperparameters of :class:`DQN` (the same names in config files and the CLI)."""
+
+    learning_rate: float = option(1e-4, "Adam step size.")
+    hidden: tuple[int, ...] = option((256, 256), "Hidden layer sizes of the Q-network MLP.")
+    activation: str = option("relu", "Activation of the MLP hidden layers: tanh, relu or elu.")
+    buffer_size: int = option(100_000, "Replay buffer capacity in transitions.")
+    learning_starts: int = option(
+        1000, "Env steps of random-policy experience before the first update."
+    )
+    batch_size: int = option(32, "Minibatch size of each gradient step.")
+    train_freq: int = option(4, "Env steps (summed over envs) between rounds of gradient steps.")
+    gradient_steps: int = option(1, "Gradient steps in each round.")
+    target_update_interval: int = option(1000, "Env steps between target-network updates.")
+    tau: float = option(
+        1.0, "Target update weight: 1 copies the online network, < 1 is Polyak averaging."
+    )
+    exploration_fraction: float = option(
+        0.1, "Fraction of the run over which epsilon decays linearly."
+    )
+    exploration_initial_eps: float = option(1.0, "epsilon at the start.")
+    exploration_final_eps: float = option(0.05, "epsilon after the decay.")
+    double_q: bool = option(
+        True, "Double DQN targets (the online network picks the bootstrap action)."
+    )
+    dueling: bool = option(False, "Dueling head: Q = V + A - mean(A).")
+    n_step: int = option(1, "Steps of the bootstrapped return (n-step Q-learning).")
+    prioritized: bool = option(False, "Proportional prioritized replay instead of uniform.")
+    per_alpha: float = option(0.6, "Prioritization exponent alpha.")
+    per_beta: float = option(0.4, "Initial importance-sampling exponent beta (annealed to 1).")
+    loss: str = option("huber", "TD loss: huber or mse.")
+
+    def validate(self) -> None:
+        """Raise InvalidArgumentError on values out of range."""
+        super().validate()
+        check(self.buffer_size >= 1, f"buffer_size must be >= 1; got {self.buffer_size}")
+        check(self.batch_size >= 1, f"batch_size must be >= 1; got {self.batch_size}")
+        check(
+            self.learning_starts >= 0, f"learning_starts must be >= 0; got {self.learning_starts}"
+        )
+        check(
+            self.train_freq >= 1 and self.gradient_steps >= 0,
+            "train_freq must be >= 1, gradient_steps >= 0",
+        )
+        check(self.target_update_interval >= 1, "target_update_interval must be >= 1")
+        check(0.0 < self.tau <= 1.0, f"tau must be in (0, 1]; got {self.tau}")
+        check(0.0 <= self.exploration_fraction <= 1.0, "exploration_fraction must be in [0, 1]")
+        for name in ("exploration_initial_eps", "exploration_final_eps"):
+            v = getattr(self, name)
+            check(0.0 <= v <= 1.0, f"{name} must be in [0, 1]; got {v}")
+        check(self.n_step >= 1, f"n_step must be >= 1; got {self.n_step}")
+        check(
+            self.per_alpha >= 0 and 0.0 <= self.per_beta <= 1.0,
+            "per_alpha must be >= 0 and per_beta in [0, 1]",
+        )
+        check(self.loss in ("huber", "mse"), f"loss must be 'huber' or 'mse'; got {self.loss!r}")
+
+
+class DQN(Agent):
+    """DQN: epsilon-greedy experience in a replay buffer and TD updates toward a target network.
+
+    Every ``train_freq`` env steps it takes ``gradient_steps`` Adam steps on the
+    (importance-weighted) Huber loss of y - Q(S_t, A_t), where y is the n-step
+    (Double) Q-learning target of :func:`~policylab.deep.dqn.losses.q_learning_targets`;
+    the target network follows the online one every ``target_update_interval`` steps.
+
+    Example:
+        >>> import policylab as pl
+        >>> agent = pl.deep.DQN("CartPole-v1", learning_starts=1000)  # doctest: +SKIP
+        >>> agent.learn(50_000)                                       # doctest: +SKIP
+    """
+
+    algo = "dqn"
+    config_class = DQNConfig
+    config: DQNConfig
+
+    def _build(self) -> None:
+        cfg = self.config
+        self.q = QNetwork(
+            self.observation_space,
+            self.action_space,
+            cfg.hidden,
+            cfg.activation,
+            cfg.dueling,
+            self.torch_gen,
+        )
+        self.q_target = copy.deepcopy(self.q).requires_grad_(False)
+        self._params = list(self.q.parameters())
+        self.optimizer = torch.optim.Adam(self.q.parameters(), lr=cfg.learning_rate, fused=True)
+        shape = tuple(self.observation_space.shape or ())
+        obs_dtype = np.uint8 if self.observation_space.dtype == np.uint8 else np.float32
+        if cfg.prioritized:
+            self.replay: ReplayBuffer = PrioritizedReplayBuffer(
+                cfg.buffer_size, shape, obs_dtype, alpha=cfg.per_alpha, seed=self.rng
+            )
+        else:
+            self.replay = ReplayBuffer(cfg.buffer_size, shape, obs_dtype, seed=self.rng)
+        self.window = NStepWindow(cfg.n_envs, cfg.n_step, cfg.gamma)
+        self._since_target = 0
+
+    @property
+    def epsilon(self) -> float:
+        """Exploration rate now: linear from initial to final over the exploration fraction."""
+        cfg = self.config
+        span = cfg.exploration_fraction * max(self.target_steps, 1)
+        frac = 1.0 if span == 0 else min(1.0, self.num_timesteps / span)
+        return cfg.exploration_initial_eps + frac * (
+            cfg.exploration_final_eps - cfg.exploration_initial_eps
+        )
+
+    @property
+    def n_actions(self) -> int:
+        """Number of discrete actions."""
+        return int(getattr(self.action_space, "n", 0))
+
+    def _act(self, obs: torch.Tensor, deterministic: bool) -> NDArray[Any]:
+        greedy: NDArray[Any] = self.q(obs).argmax(dim=1).numpy()
+        if deterministic:
+            return greedy
+        explore = self.rng.random(len(greedy)) < self.epsilon
+        return np.where(explore, self.rng.integers(0, self.n_actions, len(greedy)), greedy)
+
+    def _iteration(self) -> dict[str, float]:
+        cfg = self.config
+        n = self.envs.num_envs
+        obs = self._obs
+        assert obs is not None
+        # collect train_freq env steps with the epsilon-greedy policy
+        steps = 0
+        while steps < cfg.train_freq:
+            x = self._prepare(obs, update=True)
+            if self.num_timesteps < cfg.learning_starts:
+                actions = self.rng.integers(0, self.n_actions, n)
+            else:
+                with torch.no_grad():
+                    actions = self._act(torch.as_tensor(x), deterministic=False)
+            next_obs, rew, term, trunc, valid = self._env_step(actions)
+            done_steps = int(valid.sum())
+            steps += max(done_steps, 1)
+            self._since_target += done_steps
+            out = self.window.push(x, actions, rew, self._prepare(next_obs), term, trunc, valid)
+            if out is not None:
+                self.replay.add(*out)
+            obs = next_obs
+        metrics: dict[str, float] = {"epsilon": self.epsilon}
+        if self.num_timesteps >= cfg.learning_starts and len(self.replay) >= cfg.batch_size:
+            losses, qs = [], []
+            for _ in range(cfg.gradient_steps):
+                loss, q_mean = self._train_step()
+                losses.append(loss)
+                qs.append(q_mean)
+            if losses:
+                metrics["loss"], metrics["q_mean"] = float(np.mean(losses)), float(np.mean(qs))
+        if self._since_target >= cfg.target_update_interval:
+            self._since_target %= cfg.target_update_interval
+            self._update_target()
+        return metrics
+
+    def _train_step(self) -> tuple[float, float]:
+        cfg = self.config
+        if isinstance(self.replay, PrioritizedReplayBuffer):
+            beta = cfg.per_beta + (1.0 - cfg.per_beta) * (1.0 - self.progress_remaining)
+            b = self.replay.sample(cfg.batch_size, beta=beta)
+        else:
+            b = self.replay.sample(cfg.batch_size)
+        obs, next_obs = torch.as_tensor(b.obs), torch.as_tensor(b.next_obs)
+        with torch.no_grad():
+            next_target = self.q_target(next_obs)
+        if cfg.double_q:  # one pass of the online network over S and S' together
+            q_all = self.q(torch.cat([obs, next_obs]))
+            q_obs, next_online = q_all[: len(obs)], q_all[len(obs) :].detach()
+        else:
+            q_obs, next_online = self.q(obs), None
+        y = q_learning_targets(
+            torch.as_tensor(b.returns), torch.as_tensor(b.discounts), next_target, next_online
+        )
+        q = q_obs.gather(1, torch.as_tensor(b.actions).long().unsqueeze(1)).squeeze(1)
+        td = y - q
+        loss = td_loss(td, torch.as_tensor(b.weights), cfg.loss)
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()  # type: ignore[no-untyped-call]
+        clip_grad_norm(self._params, cfg.max_grad_norm)
+        self.optimizer.step()
+        self.n_updates += 1
+        if isinstance(self.replay, PrioritizedReplayBuffer):
+            self.replay.update_priorities(b.indices, td.detach().numpy())
+        return float(loss.item()), float(q.detach().mean().item())
+
+    def _update_target(self) -> None:
+        """theta_target <- tau theta + (1 - tau) theta_target (a copy when tau = 1)."""
+        with torch.no_grad():
+            if self.config.tau >= 1.0:
+                self.q_target.load_state_dict(self.q.state_dict())
+            else:
+                for p_t, p in zip(self.q_target.parameters(), self.q.parameters(), strict=True):
+                    p_t.lerp_(p, self.config.tau)
+
+    def _state_tensors(self, training_state: bool) -> dict[str, Any]:
+        state: dict[str, Any] = {"q": self.q.state_dict(), "q_target": self.q_target.state_dict()}
+        if training_state:
+            state["optimizer"] = self.optimizer.state_dict()
+            state["replay"] = self.replay.state_dict()
+            state["counters"] = {"since_target": self._since_target}
+        return state
+
+    def _load_state_tensors(self, tensors: dict[str, Any]) -> None:
+        self.q.load_state_dict(tensors["q"])
+        self.q_target.load_state_dict(tensors["q_target"])
+        if "optimizer" in tensors:
+            self.optimizer.load_state_dict(tensors["optimizer"])
+        if "replay" in tensors:
+            self.replay.load_state_dict(to_numpy_tree(tensors["replay"]))
+        if "counters" in tensors:
+            self._since_target = int(tensors["counters"]["since_target"])

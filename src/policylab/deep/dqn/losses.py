@@ -1,0 +1,47 @@
+"""The equations of DQN's update (Mnih et al. 2015; van Hasselt et al. 2016), one function each."""
+
+from __future__ import annotations
+
+import torch
+from torch.nn import functional
+
+__all__ = ["q_learning_targets", "td_loss"]
+
+
+def q_learning_targets(
+    returns: torch.Tensor,
+    discounts: torch.Tensor,
+    next_q_target: torch.Tensor,
+    next_q_online: torch.Tensor | None,
+) -> torch.Tensor:
+    """Bootstrapped (n-step) Q-learning targets y.
+
+    DQN:        y = G_{t:t+n} + d * max_a Q_target(S', a)
+    Double DQN: y = G_{t:t+n} + d * Q_target(S', argmax_a Q_online(S', a))
+
+    with d = gamma^n (1 - terminated) the stored bootstrap weight (0 after a
+    termination, gamma^n after a truncation or a step that did not end the episode).
+
+    Args:
+        returns: (B,) G_{t:t+n}.
+        discounts: (B,) d.
+        next_q_target: (B, A) Q_target(S', .).
+        next_q_online: (B, A) Q_online(S', .) for Double DQN, or None for DQN.
+    """
+    if next_q_online is None:
+        bootstrap = next_q_target.max(dim=1).values
+    else:
+        best = next_q_online.argmax(dim=1, keepdim=True)
+        bootstrap = next_q_target.gather(1, best).squeeze(1)
+    return returns + discounts * bootstrap
+
+
+def td_loss(td_errors: torch.Tensor, weights: torch.Tensor, kind: str = "huber") -> torch.Tensor:
+    """Importance-weighted mean of the Huber (smooth L1, delta 1) or squared TD error."""
+    zeros = torch.zeros_like(td_errors)
+    per = (
+        functional.smooth_l1_loss(td_errors, zeros, reduction="none")
+        if kind == "huber"
+        else td_errors**2
+    )
+    return (weights * per).mean()

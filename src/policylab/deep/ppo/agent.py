@@ -1,0 +1,208 @@
+"""Proximal Policy Optimization (Schulman et al. 2017) for discrete and continuous actions."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+from numpy.typing import NDArray
+
+from policylab.deep.common.agent import Agent, BaseConfig
+from policylab.deep.common.buffers import RolloutBuffer
+from policylab.deep.common.config import check, documented, option
+from policylab.deep.common.networks import clip_grad_norm
+from policylab.deep.common.normalize import RewardScaler
+from policylab.deep.ppo.losses import clipped_surrogate_loss, normalized, value_loss
+from policylab.deep.ppo.networks import ActorCritic, action_dtype
+
+__all__ = ["PPO", "PPOConfig"]
+
+
+@documented
+@dataclasses.dataclass
+class PPOConfig(BaseConfig):
+    """Hyperparameters of :class:`PPO` (the same names in config files and the CLI)."""
+
+    n_steps: int = option(
+        128, "Steps per env in each rollout (a rollout has n_steps * n_envs steps)."
+    )
+    batch_size: int = option(64, "Minibatch size of the gradient steps.")
+    n_epochs: int = option(10, "Passes over each rollout.")
+    gae_lambda: float = option(0.95, "lambda of the generalised advantage estimate.")
+    clip_range: float = option(
+        0.2, "epsilon of the clipped objective: ratios outside [1-eps, 1+eps] give no gradient."
+    )
+    clip_range_vf: float = option(
+        0.0, "Value clipping range around the old values (0: no value clipping)."
+    )
+    ent_coef: float = option(0.0, "Weight of the entropy bonus.")
+    vf_coef: float = option(0.5, "Weight of the value loss.")
+    normalize_advantage: bool = option(True, "Normalise advantages within each minibatch.")
+    anneal_lr: bool = option(True, "Decay the learning rate linearly to 0 over the run.")
+    target_kl: float = option(
+        0.0, "Stop a rollout's epochs early once the approximate KL exceeds this (0: never)."
+    )
+    log_std_init: float = option(
+        0.0, "Initial log std of the Gaussian policy (continuous actions)."
+    )
+    normalize_reward: bool = option(
+        False, "Divide rewards by the running std of the discounted return."
+    )
+    max_grad_norm: float = option(0.5, "Clip the global gradient norm to this value.")
+
+    def validate(self) -> None:
+        """Raise InvalidArgumentError on values out of range."""
+        super().validate()
+        check(self.n_steps >= 1, f"n_steps must be >= 1; got {self.n_steps}")
+        check(self.batch_size >= 1, f"batch_size must be >= 1; got {self.batch_size}")
+        check(self.n_epochs >= 1, f"n_epochs must be >= 1; got {self.n_epochs}")
+        check(0.0 <= self.gae_lambda <= 1.0, f"gae_lambda must be in [0, 1]; got {self.gae_lambda}")
+        check(self.clip_range > 0, f"clip_range must be > 0; got {self.clip_range}")
+        check(self.clip_range_vf >= 0, f"clip_range_vf must be >= 0; got {self.clip_range_vf}")
+        check(self.ent_coef >= 0 and self.vf_coef >= 0, "ent_coef and vf_coef must be >= 0")
+        check(self.target_kl >= 0, f"target_kl must be >= 0; got {self.target_kl}")
+
+
+class PPO(Agent):
+    """PPO with a clipped objective, GAE, optional value clipping and an entropy bonus.
+
+    Each iteration collects ``n_steps`` steps of each of the ``n_envs`` envs with the
+    current policy, computes GAE advantages (bootstrapping truncated episodes from the
+    value of their last state, and never terminated ones), and takes ``n_epochs``
+    passes of minibatch Adam steps on
+
+        L = L^CLIP + vf_coef L^V - ent_coef H[pi].
+
+    Example:
+        >>> import policylab as pl
+        >>> agent = pl.deep.PPO("CartPole-v1", n_envs=8, n_steps=32)  # doctest: +SKIP
+        >>> agent.learn(100_000)                                      # doctest: +SKIP
+    """
+
+    algo = "ppo"
+    config_class = PPOConfig
+    config: PPOConfig
+
+    def _build(self) -> None:
+        cfg = self.config
+        self.net = ActorCritic(
+            self.observation_space,
+            self.action_space,
+            cfg.hidden,
+            cfg.activation,
+            cfg.log_std_init,
+            self.torch_gen,
+        )
+        self._params = list(self.net.parameters())
+        self.optimizer = torch.optim.Adam(
+            self.net.parameters(), lr=cfg.learning_rate, eps=1e-5, fused=True
+        )
+        self.buffer = RolloutBuffer(
+            cfg.n_steps,
+            cfg.n_envs,
+            tuple(self.observation_space.shape or ()),
+            tuple(self.action_space.shape or ()),
+            obs_dtype=np.uint8 if self.observation_space.dtype == np.uint8 else np.float32,
+            action_dtype=action_dtype(self.action_space),
+        )
+        self.reward_scaler = RewardScaler(cfg.n_envs, cfg.gamma) if cfg.normalize_reward else None
+
+    def _act(self, obs: torch.Tensor, deterministic: bool) -> NDArray[Any]:
+        a, _, _ = self.net.sample(obs, self.torch_gen, deterministic)
+        out = a.numpy()
+        if isinstance(self.action_space, gym.spaces.Box):
+            out = np.clip(out, self.action_space.low, self.action_space.high)
+        return out
+
+    def _collect(self) -> None:
+        """Fill the rollout buffer with n_steps steps of every env."""
+        cfg, buf = self.config, self.buffer
+        buf.reset()
+        obs = self._obs
+        assert obs is not None
+        while not buf.full:
+            valid = ~self._prev_done
+            x = self._prepare(obs, update=True)
+            with torch.no_grad():
+                a, logp, v = self.net.sample(torch.as_tensor(x), self.torch_gen)
+            actions = a.numpy()
+            buf.add(x, actions, logp.numpy(), v.numpy(), valid)
+            obs, rew, term, trunc, _ = self._env_step(actions)
+            if self.reward_scaler is not None:
+                rew = self.reward_scaler(rew, term | trunc)
+            buf.add_outcome(rew, term, trunc)
+        with torch.no_grad():
+            last_v = self.net.value(torch.as_tensor(self._prepare(obs))).numpy()
+        buf.compute_advantages(last_v, cfg.gamma, cfg.gae_lambda)
+
+    def _iteration(self) -> dict[str, float]:
+        cfg, buf = self.config, self.buffer
+        lr = cfg.learning_rate * (self.progress_remaining if cfg.anneal_lr else 1.0)
+        for group in self.optimizer.param_groups:
+            group["lr"] = lr
+        self._collect()
+
+        obs = torch.as_tensor(buf.flat("obs"))
+        actions = torch.as_tensor(buf.flat("actions"))
+        old_logp = torch.as_tensor(buf.flat("log_probs"))
+        old_v = torch.as_tensor(buf.flat("values"))
+        advantages = torch.as_tensor(buf.flat("advantages"))
+        returns = torch.as_tensor(buf.flat("returns"))
+        vclip = cfg.clip_range_vf or None
+        stats: dict[str, list[float]] = {
+            "policy_loss": [],
+            "value_loss": [],
+            "entropy": [],
+            "approx_kl": [],
+            "clip_fraction": [],
+        }
+        for _ in range(cfg.n_epochs):
+            for mb in buf.minibatches(cfg.batch_size, self.rng):
+                i = torch.from_numpy(mb)
+                logp, entropy, v = self.net.evaluate_actions(obs[i], actions[i])
+                log_ratio = logp - old_logp[i]
+                ratio = log_ratio.exp()
+                adv = normalized(advantages[i]) if cfg.normalize_advantage else advantages[i]
+                pg_loss = clipped_surrogate_loss(ratio, adv, cfg.clip_range)
+                v_loss = value_loss(v, old_v[i], returns[i], vclip)
+                ent = entropy.mean()
+                loss = pg_loss + cfg.vf_coef * v_loss - cfg.ent_coef * ent
+                self.optimizer.zero_grad(set_to_none=True)
+                loss.backward()  # type: ignore[no-untyped-call]
+                clip_grad_norm(self._params, cfg.max_grad_norm)
+                self.optimizer.step()
+                self.n_updates += 1
+                with torch.no_grad():
+                    approx_kl = ((ratio - 1) - log_ratio).mean().item()
+                    stats["clip_fraction"].append(
+                        ((ratio - 1).abs() > cfg.clip_range).float().mean().item()
+                    )
+                stats["policy_loss"].append(pg_loss.item())
+                stats["value_loss"].append(v_loss.item())
+                stats["entropy"].append(ent.item())
+                stats["approx_kl"].append(approx_kl)
+            if cfg.target_kl and stats["approx_kl"][-1] > cfg.target_kl:
+                break
+        out = {k: float(np.mean(v)) for k, v in stats.items()}
+        out["learning_rate"] = lr
+        return out
+
+    def _state_tensors(self, training_state: bool) -> dict[str, Any]:
+        state: dict[str, Any] = {"net": self.net.state_dict()}
+        if training_state:
+            state["optimizer"] = self.optimizer.state_dict()
+            if self.reward_scaler is not None:
+                state["reward_scaler"] = self.reward_scaler.rms.state_dict()
+        return state
+
+    def _load_state_tensors(self, tensors: dict[str, Any]) -> None:
+        from policylab.deep.common.checkpoint import to_numpy_tree
+
+        self.net.load_state_dict(tensors["net"])
+        if "optimizer" in tensors:
+            self.optimizer.load_state_dict(tensors["optimizer"])
+        if "reward_scaler" in tensors and self.reward_scaler is not None:
+            self.reward_scaler.rms.load_state_dict(to_numpy_tree(tensors["reward_scaler"]))

@@ -1,0 +1,113 @@
+"""PPO: short runs on CartPole and Pendulum, seeding, API errors, and solving CartPole."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+import policylab as pl
+from policylab.exceptions import InvalidArgumentError
+
+
+def test_short_run_discrete() -> None:
+    agent = pl.deep.PPO("CartPole-v1", n_envs=4, n_steps=64, batch_size=64, n_epochs=2, seed=0)
+    agent.learn(2048)
+    assert agent.num_timesteps >= 2048 and agent.n_updates > 0 and agent.episodes > 0
+    a = agent.predict(np.zeros(4, dtype=np.float32))
+    assert a.shape == () and a in (0, 1)
+    assert agent.predict(np.zeros((3, 4), dtype=np.float32)).shape == (3,)
+
+
+def test_short_run_continuous_pendulum() -> None:
+    agent = pl.deep.PPO(
+        "Pendulum-v1", n_envs=2, n_steps=256, batch_size=128, n_epochs=2, gamma=0.9, seed=0
+    )
+    agent.learn(2048)
+    assert agent.net.continuous and agent.episodes >= 8
+    obs = np.random.default_rng(0).normal(size=(16, 3)).astype(np.float32)
+    a = agent.predict(obs, deterministic=False)
+    assert a.shape == (16, 1) and np.all(np.abs(a) <= 2.0)
+    returns = pl.deep.evaluate(agent, episodes=2, seed=0)
+    assert returns.shape == (2,) and np.all(returns < 0)
+
+
+def test_same_seed_same_run_different_seed_different_run() -> None:
+    def run(seed: int) -> tuple[list[torch.Tensor], list[float]]:
+        agent = pl.deep.PPO("CartPole-v1", n_envs=2, n_steps=64, n_epochs=2, seed=seed)
+        agent.learn(512)
+        return agent.state_parameters(), list(agent.recent_returns)
+
+    (p0, r0), (p1, r1), (p2, _) = run(7), run(7), run(8)
+    for a, b in zip(p0, p1, strict=True):
+        torch.testing.assert_close(a, b, rtol=0, atol=0)
+    assert r0 == r1
+    assert any(not torch.equal(a, b) for a, b in zip(p0, p2, strict=True))
+
+
+def test_evaluate_counts_exact_episodes_and_is_seeded() -> None:
+    agent = pl.deep.PPO("CartPole-v1", seed=0)
+    a = pl.deep.evaluate(agent, episodes=7, seed=3, deterministic=False)
+    b = pl.deep.evaluate(agent, episodes=7, seed=3, deterministic=False)
+    assert a.shape == (7,)
+    agent2 = pl.deep.PPO("CartPole-v1", seed=0)
+    np.testing.assert_array_equal(
+        pl.deep.evaluate(agent2, episodes=7, seed=3, deterministic=False), a
+    )
+    assert np.all(b > 0)
+
+
+def test_callback_can_stop_training() -> None:
+    seen = []
+
+    def cb(agent: pl.deep.Agent, metrics: dict[str, float]) -> bool:
+        seen.append(metrics)
+        return False
+
+    agent = pl.deep.PPO("CartPole-v1", n_steps=32)
+    agent.learn(10_000, callback=cb)
+    assert len(seen) == 1 and agent.num_timesteps < 100
+    assert {"policy_loss", "value_loss", "entropy", "approx_kl", "learning_rate"} <= set(seen[0])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"n_steps": 0}, "n_steps"),
+        ({"gamma": 2.0}, "gamma"),
+        ({"bogus": 1}, "unknown PPOConfig field"),
+        ({"n_epochs": "ten"}, "integer"),
+        ({"activation": "sigmoid"}, "activation"),
+    ],
+)
+def test_bad_config_is_refused_by_name(kwargs: dict[str, object], match: str) -> None:
+    with pytest.raises(InvalidArgumentError, match=match):
+        pl.deep.PPO("CartPole-v1", **kwargs)
+
+
+def test_bad_env_and_obs_are_refused() -> None:
+    with pytest.raises(InvalidArgumentError, match="NoSuchEnv"):
+        pl.deep.PPO("NoSuchEnv-v0")
+    with pytest.raises(InvalidArgumentError, match="DQN needs a Discrete"):
+        pl.deep.DQN("Pendulum-v1")
+    agent = pl.deep.PPO("CartPole-v1")
+    with pytest.raises(InvalidArgumentError, match="obs must have shape"):
+        agent.predict(np.zeros(5))
+
+
+def test_ppo_solves_cartpole() -> None:
+    """The tuned CartPole defaults reach the 475 threshold over 100 greedy episodes."""
+    fields, _ = pl.deep.default_config("ppo", "CartPole-v1")
+    agent = pl.deep.PPO("CartPole-v1", seed=0, **fields)
+    solved: list[float] = []
+
+    def check(a: pl.deep.Agent, m: dict[str, float]) -> bool | None:
+        if a.num_timesteps % 10_240 < a.config.n_steps * a.config.n_envs:
+            r = pl.deep.evaluate(a, episodes=100, seed=1).mean()
+            if r >= 475:
+                solved.append(r)
+                return False
+        return None
+
+    agent.learn(60_000, callback=check)
+    assert solved, "PPO did not reach a mean return of 475 over 100 episodes in 60k steps"

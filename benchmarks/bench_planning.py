@@ -92,6 +92,10 @@ def worker(lib: str, method: str, S: int, out: str) -> None:
     mdp = build(S)
     A = mdp.n_actions
     iters: int = 0
+    floor = floor_seconds(mdp)  # in this process, just before the solve
+    mdp.expected_reward  # noqa: B018  (derived once per model; every library is given r(s, a))
+    if lib == "policylab":
+        mdp.__dict__.pop("transition_matrix", None)  # our solvers read the outcome table
     if lib == "policylab":
         from policylab.planning import linear_programming, modified_policy_iteration
 
@@ -113,6 +117,17 @@ def worker(lib: str, method: str, S: int, out: str) -> None:
         policy = res.policy.action_indices()
         iters = res.iterations
         extra = {"error_bound": res.error_bound}
+        if method in ("vi", "vi-gs"):
+            from policylab.planning._kernels import (
+                gauss_seidel_optimality_sweep,
+                optimality_sweep,
+            )
+
+            w = res.v.copy()
+            if method == "vi":
+                extra["sweep"] = best_of(lambda: optimality_sweep(mdp, GAMMA, w))
+            else:
+                extra["sweep"] = best_of(lambda: gauss_seidel_optimality_sweep(mdp, GAMMA, w))
     elif lib == "quantecon":
         import quantecon as qe
 
@@ -135,6 +150,9 @@ def worker(lib: str, method: str, S: int, out: str) -> None:
         policy = np.asarray(res.sigma)
         iters = int(res.num_iter)
         extra = {}
+        if method == "vi":
+            w = np.asarray(res.v).copy()
+            extra["sweep"] = best_of(lambda: ddp.bellman_operator(w))
     else:
         import scipy.sparse as sp
         from hiive.mdptoolbox import mdp as hm
@@ -170,10 +188,21 @@ def worker(lib: str, method: str, S: int, out: str) -> None:
                 "peak_solve_mb": mem.extra_mb,
                 "maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                 "model_mb": mdp.nbytes / 2**20,
+                "floor": floor,
                 **extra,
             }
         )
     )
+
+
+def best_of(fn: Any, repeats: int = 7) -> float:
+    """The fastest of a few calls of ``fn``."""
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
 
 
 def floor_seconds(mdp: Any, repeats: int = 7) -> float:
@@ -215,7 +244,7 @@ def main() -> int:
 
     quick = "--quick" in sys.argv
     sizes = [10**4] if quick else [10**4, 10**6]
-    limits = {10**4: 100.0, 10**6: 120.0}
+    limits = {10**4: 60.0, 10**6: 90.0}
     sections = []
     for S in sizes:
         print(f"== S = {S}", flush=True)
@@ -231,7 +260,7 @@ def main() -> int:
                 if method == "lp" and S > 10**4:
                     continue
                 print(f"   {lib} {method} ...", flush=True)
-                r = run_case(lib, method, S, 60.0 if method == "lp" else limits[S])
+                r = run_case(lib, method, S, limits[S])
                 if r["status"] == "ok":
                     v_pi = pl.evaluate_policy(mdp, pl.Policy.from_actions(mdp, r["policy"]))
                     r["error"] = float(np.max(v_star - v_pi))
@@ -255,9 +284,11 @@ def table(S: int, mdp: Any, floor: float, rows: list[tuple[str, str, dict[str, A
         f"### random_mdp({S:,}, 4 actions, 10 successors), gamma {GAMMA}: "
         f"model {model_mb:,.0f} MiB, {mdp.n_outcomes:,} outcomes",
         "",
-        f"Floor: {NAMES['floor']} = {floor * 1e3:.2f} ms.",
+        f"Floor: {NAMES['floor']} = {floor * 1e3:.2f} ms in the parent process; each "
+        "worker measures it again just before its solve, and the per-sweep ratio uses "
+        "that worker's own floor.",
         "",
-        "| library | method | time (s) | iterations | time per sweep / floor | "
+        "| library | method | time (s) | iterations | one sweep / floor | "
         "max v* - v_pi | within 1e-6 | solve extra RSS (MiB) | process peak RSS (MiB) |",
         "|---|---|---:|---:|---:|---:|:---:|---:|---:|",
     ]
@@ -267,8 +298,8 @@ def table(S: int, mdp: Any, floor: float, rows: list[tuple[str, str, dict[str, A
             lines.append(f"| {lib} | {NAMES[method]} | {r['status']} | | | | | | |")
             continue
         sweep = ""
-        if method in ("vi", "vi-gs") and r["iterations"]:
-            sweep = f"{r['seconds'] / r['iterations'] / floor:.2f}x"
+        if r.get("sweep"):
+            sweep = f"{r['sweep'] / r['floor']:.2f}x"
         ok = r["error"] <= TARGET
         if ok and (lib not in best or r["seconds"] < best[lib][0]):
             best[lib] = (r["seconds"], NAMES[method])
@@ -290,13 +321,18 @@ NOTES = """Notes.
   machine shared with four other developers working at the same time: timings carry
   noise of tens of percent. "> N s (stopped)" means the subprocess was killed at its
   time limit.
-- "max v* - v_pi" is the exact error of the returned policy (its value by a sparse
-  solve against the reference v_*); "within 1e-6" is the issue's success criterion.
+- "max v* - v_pi" is the error of the returned policy (its value by an exact
+  evaluation against the reference v_*); "within 1e-6" is the issue's success
+  criterion. Where every library returns the same optimal policy the column shows the
+  same ~1e-10: the accuracy of the evaluation itself, not a difference of policies.
   Each library was asked for 1e-6 (policylab: tol on v, with the proven bound;
   quantecon and hiive: epsilon).
-- "time per sweep / floor": value-iteration time per sweep over one bare scipy CSR
-  product P @ v with the (S * A, S) matrix (our sweeps read the outcome table directly,
-  in one compiled pass, and also take the max over actions).
+- "one sweep / floor": the fastest of 7 Bellman optimality sweeps (policylab's
+  compiled sweep, which reads the outcome table in one pass and takes the max over
+  actions; quantecon's ``bellman_operator``) over the fastest of 7 bare scipy CSR
+  products P @ v with the (S * A, S) matrix, both timed in the same worker. Total
+  time / iterations is higher at 10^4 states, where the fixed costs of a solve (the
+  final q and greedy policy) weigh as much as a few sweeps.
 - Memory: "solve extra RSS" is the peak resident memory during the solve above the
   level just before it (sampled every 2 ms by a thread, so it includes C allocations
   such as SuperLU's factors); "process peak RSS" includes the interpreter, the
@@ -305,7 +341,7 @@ NOTES = """Notes.
   policy iteration evaluates each policy to a proven 1e-10 relative accuracy (sparse
   LU up to 5,000 states; above, warm-started sweeps stopped by MacQueen's bounds,
   with GMRES on a matrix-free operator if they mix slowly). Linear programming is
-  there as an independent check, not for speed (HiGHS, 60 s limit).
+  there as an independent check, not for speed (HiGHS).
 - mdptoolbox-hiive's ValueIterationGS fails on sparse transition matrices (a
   TypeError inside the library), so it has no time."""
 

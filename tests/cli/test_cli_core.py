@@ -76,3 +76,14 @@ def test_tour_quick(capsys, tmp_path):
     code, out, _ = run(["tour", "--quick", "--out", str(tmp_path)], capsys)
     assert code == 0
     assert "-6" in out and "-5" in out and "Tour complete" in out
+
+
+@pytest.mark.parametrize(
+    "args", [["evaluate", "recycling-robot"], ["solve"], ["no-such-command"], ["show", "--bogus"]]
+)
+def test_usage_errors_exit_2_without_traceback(args):
+    proc = subprocess.run(
+        [sys.executable, "-m", "policylab", *args], capture_output=True, text=True
+    )
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr and "Error" in proc.stderr

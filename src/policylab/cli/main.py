@@ -64,12 +64,19 @@ def main(argv: list[str] | None = None) -> None:
     except SystemExit:
         raise
     except Exception as e:
-        import click  # type: ignore[import-not-found,unused-ignore]
-
-        if isinstance(e, click.ClickException):
-            e.show()
+        if isinstance(e, _click_exception_types()):
+            e.show()  # type: ignore[attr-defined]
             sys.exit(2)
         if os.environ.get("POLICYLAB_DEBUG"):
             raise
         typer.echo(f"policylab: internal error: {type(e).__name__}: {e}", err=True)
         sys.exit(1)
+
+
+def _click_exception_types() -> tuple[type[Exception], ...]:
+    """Click's usage-error base class: from click, or the copy newer typer versions bundle."""
+    try:
+        from click.exceptions import ClickException  # type: ignore[import-not-found,unused-ignore]
+    except ImportError:
+        from typer._click.exceptions import ClickException  # type: ignore[import-not-found,no-redef,unused-ignore]
+    return (ClickException,)

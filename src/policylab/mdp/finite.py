@@ -163,7 +163,7 @@ class FiniteMDP:
             arr.flags.writeable = False
 
     def _check_probabilities(self, counts: NDArray[np.int64]) -> None:
-        S, A = self.n_states, self.n_actions
+        A = self.n_actions
         term, mask = self.terminal, self.action_mask
         probs, rewards = self.probs, self.rewards
         if not np.all(np.isfinite(probs)) or np.any(probs < 0):
@@ -201,10 +201,7 @@ class FiniteMDP:
                 f"non-terminal state {_fmt(self.states[s])} has no available action; give it "
                 "an action or mark it terminal"
             )
-        rows = np.repeat(np.arange(S * A), np.diff(self.indptr))
-        sums: NDArray[np.float64] = np.bincount(rows, weights=probs, minlength=S * A).astype(
-            np.float64
-        )
+        sums = _segment_sum(probs, self.indptr)
         bad = mask.ravel() & (np.abs(sums - 1.0) > PROB_TOL)
         if np.any(bad):
             s, a = divmod(int(np.flatnonzero(bad)[0]), A)
@@ -298,19 +295,14 @@ class FiniteMDP:
         )
 
     # ------------------------------------------------------------------ derived views
-    @cached_property
-    def _row_of_outcome(self) -> NDArray[np.intp]:
-        return np.repeat(np.arange(self.n_states * self.n_actions), np.diff(self.indptr))
+    def _sum_per_pair(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Sum ``values`` (one per outcome) over the outcomes of each (s, a) pair, in one pass."""
+        return _segment_sum(values, self.indptr)
 
     @cached_property
     def expected_reward(self) -> NDArray[np.float64]:
         """r(s, a) = sum_{s', r} p(s', r | s, a) r, as an (S, A) array (0 where unavailable)."""
-        flat = np.bincount(
-            self._row_of_outcome,
-            weights=self.probs * self.rewards,
-            minlength=self.n_states * self.n_actions,
-        )
-        r = np.asarray(flat, dtype=np.float64).reshape(self.n_states, self.n_actions)
+        r = self._sum_per_pair(self.probs * self.rewards).reshape(self.n_states, self.n_actions)
         r.flags.writeable = False
         return r
 
@@ -322,8 +314,11 @@ class FiniteMDP:
         unavailable actions and of terminal states are empty.
         """
         SA = self.n_states * self.n_actions
+        # matching index dtypes let scipy use the model's arrays without copying them
+        small = self.n_outcomes < 2**31 and self.next_states.dtype == np.int32
+        indptr = self.indptr.astype(np.int32) if small else self.indptr
         m = sp.csr_array(
-            (self.probs, self.next_states, self.indptr), shape=(SA, self.n_states), copy=False
+            (self.probs, self.next_states, indptr), shape=(SA, self.n_states), copy=False
         )
         if not m.has_canonical_format:
             m = m.copy()
@@ -783,6 +778,16 @@ class FiniteMDP:
             initial=initial,
             name=name or str(env_id),
         )
+
+
+def _segment_sum(values: NDArray[np.float64], indptr: NDArray[np.int64]) -> NDArray[np.float64]:
+    """out[i] = sum(values[indptr[i]:indptr[i + 1]]) (0 for an empty segment)."""
+    n = len(indptr) - 1
+    out = np.zeros(n)
+    nonempty = indptr[1:] > indptr[:-1]
+    if values.size:
+        out[nonempty] = np.add.reduceat(values, indptr[:-1][nonempty])
+    return out
 
 
 def _short(labels: Sequence[Hashable], limit: int = 12) -> str:

@@ -28,7 +28,7 @@ import numpy as np
 import policylab as pl
 from policylab import tabular
 from policylab.tabular import td_kernels as tdk
-from policylab.tabular.common import StateIndex
+from policylab.tabular.common import GymStepper, StateIndex
 from policylab.tabular.kernels import KernelMDP, rng_states
 from policylab.tabular.schedules import Schedule
 
@@ -86,7 +86,7 @@ def kernel_steps(
         first = np.zeros(episodes, dtype=np.int64)
         rng = rng_states(0, 1)[0]
         if python:
-            env: Any = tdk.GymStepper(pl.MDPEnv(mdp), StateIndex.discrete(S), 0)
+            env: Any = GymStepper(pl.MDPEnv(mdp), StateIndex.discrete(S), 0)
             model = tdk.model_tuple(None)
             fn = tdk.one_step_control_kernel.py_func
         else:

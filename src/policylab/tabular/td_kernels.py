@@ -34,17 +34,17 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import njit, types
-from numba.extending import overload, register_jitable
+from numba import njit
+from numba.extending import register_jitable
 
-from policylab.exceptions import UnknownLabelError
 from policylab.tabular.kernels import (
+    env_reset,
+    env_step,
     epsilon_greedy_action,
     epsilon_greedy_prob,
     rand_below,
     sample_action,
     sample_next,
-    sample_start,
 )
 from policylab.tabular.schedules import schedule_value
 
@@ -55,11 +55,8 @@ __all__ = [
     "SARSA",
     "TRACE_ACCUMULATING",
     "TRACE_REPLACING",
-    "GymStepper",
     "double_q_target",
     "dyna_q_kernel",
-    "env_reset",
-    "env_step",
     "expected_sarsa_target",
     "lambda_kernel",
     "model_tuple",
@@ -97,90 +94,6 @@ def model_tuple(km: Any | None) -> tuple[Any, ...]:
             np.zeros(1),
         )
     return (km.indptr, km.next_states, km.probs, km.rewards, km.terminal, km.initial)
-
-
-class GymStepper:
-    """A Gymnasium env seen through the kernels' two calls (the general path).
-
-    Observations become table rows through ``index`` (a
-    :class:`~policylab.tabular.common.StateIndex` with a fixed size). The first
-    :meth:`reset` seeds the env with ``env_seed``; later resets continue its stream.
-    """
-
-    def __init__(self, env: Any, index: Any, env_seed: int | None) -> None:
-        self.env = env
-        self.index = index
-        self._seed = env_seed
-
-    def reset(self) -> int:
-        """Start an episode; return the row of S_0."""
-        obs, _ = self.env.reset(seed=self._seed)
-        self._seed = None
-        return int(self.index(obs))
-
-    def step(self, a: int) -> tuple[int, float, bool, bool]:
-        """Take A_t; return (row of S_{t+1}, R_{t+1}, terminated, truncated).
-
-        A terminal observation that is not one of the index's states (Blackjack-v1's
-        final hands) gets row 0: no update ever reads the value of a terminal state.
-        """
-        obs, r, terminated, truncated, _ = self.env.step(int(a))
-        try:
-            row = int(self.index(obs))
-        except UnknownLabelError:
-            if not terminated:
-                raise
-            row = 0
-        return row, float(r), bool(terminated), bool(truncated)
-
-
-def env_reset(env: Any, initial: Any, rng: Any) -> int:
-    """S_0: ``env.reset()`` (general path) or a draw from the model's start distribution.
-
-    On the compiled path ``env`` is None and the model's arrays are given (unpacked once
-    per kernel: a tuple read inside the loop would cost reference counting each step).
-    """
-    return int(env.reset())
-
-
-def env_step(
-    env: Any,
-    s: int,
-    a: int,
-    rng: Any,
-    indptr: Any,
-    next_states: Any,
-    probs: Any,
-    rewards: Any,
-    terminal: Any,
-    n_actions: int,
-) -> tuple[int, float, bool, bool]:
-    """(S_{t+1}, R_{t+1}, terminated, truncated) after A_t = a in S_t = s.
-
-    General path: ``env.step(a)``. Compiled path (``env`` None): one outcome of row
-    ``s * A + a`` of the outcome table drawn with the shared ``sample_next``.
-    """
-    return env.step(a)  # type: ignore[no-any-return]
-
-
-@overload(env_reset, inline="always")
-def _env_reset_model(env, initial, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
-    if isinstance(env, types.NoneType):
-        return lambda env, initial, rng: sample_start(initial, rng)
-    return None
-
-
-@overload(env_step, inline="always")
-def _env_step_model(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]  # pragma: no cover
-    if isinstance(env, types.NoneType):
-
-        def impl(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]
-            k = sample_next(indptr, probs, s * n_actions + a, rng)
-            nxt = int(next_states[k])
-            return nxt, float(rewards[k]), bool(terminal[nxt]), False
-
-        return impl
-    return None
 
 
 # ---------------------------------------------------------------------------- update rules
@@ -329,13 +242,6 @@ def td0_kernel(
 
 
 # ---------------------------------------------------------------------------- one-step control
-@register_jitable
-def _sum_rows(q1: Any, q2: Any, s: int, out: Any) -> None:
-    """Out <- Q1(s, .) + Q2(s, .): the values Double Q-learning's behaviour acts on."""
-    for a in range(q1.shape[1]):
-        out[a] = q1[s, a] + q2[s, a]
-
-
 @njit(cache=True, nogil=True)
 def one_step_control_kernel(
     env: Any,
@@ -343,6 +249,7 @@ def one_step_control_kernel(
     mask: Any,
     q1: Any,
     q2: Any,
+    qb: Any,
     rule: int,
     k0: int,
     k1: int,
@@ -364,24 +271,36 @@ def one_step_control_kernel(
     R + gamma E_pi Q(S', .), and the next action is chosen after the update (the
     book's boxes). :data:`DOUBLE_Q`: a fair coin picks which of Q1, Q2 is updated
     (the other one values the argmax); behaviour is epsilon-greedy in Q1 + Q2.
+    ``qb`` is the table the behaviour is epsilon-greedy in: ``q1`` itself, or for
+    Double Q-learning a table kept equal to Q1 + Q2 entry by entry (one sum per update
+    instead of one per step: the step loop then reads a single table, which keeps the
+    compiled loop free of per-step array temporaries).
     ``first_actions[k]`` receives A_0 of episode k (Figure 6.5 counts "left" in A).
+
+    The step is :func:`~policylab.tabular.kernels.env_step` written out in the loop
+    (numba prunes the ``env is None`` branch): the call, with its six array arguments,
+    cost this hottest loop a third of its speed (issue 5's 10 M steps/s target).
     """
     indptr, next_states, probs, rewards, terminal, initial = model
     n_actions = mask.shape[1]
-    qsum = np.zeros(q1.shape[1])
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
         s = env_reset(env, initial, rng)
-        if rule == 3:
-            _sum_rows(q1, q2, s, qsum)
-        a = epsilon_greedy_action(qsum if rule == 3 else q1[s], mask[s], epsilon, rng)
+        a = epsilon_greedy_action(qb[s], mask[s], epsilon, rng)
         first_actions[k] = a
         g, disc, t = 0.0, 1.0, 0
         while True:
-            s2, r, terminated, truncated = env_step(
-                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
-            )
+            if env is None:  # compiled path: one outcome of row s * A + a of the model
+                o = sample_next(indptr, probs, s * n_actions + a, rng)
+                s2, r, terminated, truncated = (
+                    next_states[o],
+                    rewards[o],
+                    terminal[next_states[o]],
+                    False,
+                )
+            else:  # general path: the Gymnasium env (what env_step does, written out for speed)
+                s2, r, terminated, truncated = env.step(a)
             t += 1
             g += disc * r
             disc *= gamma
@@ -391,11 +310,7 @@ def one_step_control_kernel(
             if rule == 0:
                 q_next = 0.0
                 if not terminated:
-                    if rule == 3:
-                        _sum_rows(q1, q2, s2, qsum)
-                    a2 = epsilon_greedy_action(
-                        qsum if rule == 3 else q1[s2], mask[s2], epsilon, rng
-                    )
+                    a2 = epsilon_greedy_action(q1[s2], mask[s2], epsilon, rng)
                     q_next = q1[s2, a2]
                 q1[s, a] = td_update(q1[s, a], alpha, sarsa_target(r, gamma, q_next, terminated))
             elif rule == 1:
@@ -411,12 +326,11 @@ def one_step_control_kernel(
                 else:
                     target = double_q_target(r, gamma, q2[s2], q1[s2], mask[s2], terminated)
                     q2[s, a] = td_update(q2[s, a], alpha, target)
+                qb[s, a] = q1[s, a] + q2[s, a]
             if terminated or truncated or t >= max_steps:
                 break
             if rule != 0:
-                if rule == 3:
-                    _sum_rows(q1, q2, s2, qsum)
-                a2 = epsilon_greedy_action(qsum if rule == 3 else q1[s2], mask[s2], epsilon, rng)
+                a2 = epsilon_greedy_action(qb[s2], mask[s2], epsilon, rng)
             s, a = s2, a2
         returns[k] = g
         lengths[k] = t

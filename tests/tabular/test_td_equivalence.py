@@ -113,7 +113,9 @@ def test_update_rules_by_hand():
     assert tdk.td_update(1.0, 0.25, 3.0) == 1.5
     assert tdk.td_target(1.0, 0.5, 4.0, False) == 3.0
     assert tdk.td_target(1.0, 0.5, 4.0, True) == 1.0
-    assert tdk.q_learning_target(0.0, 1.0, q, mask, False) == 2.0  # 3.0 is unavailable
+    assert (
+        tdk.q_learning_target(0.0, 1.0, q[None], mask[None], 0, False) == 2.0
+    )  # 3.0 is unavailable
     # epsilon-greedy over {0, 2}: 0.9 + 0.05 on action 2, 0.05 on action 0.
     assert tdk.expected_sarsa_target(0.0, 1.0, q, mask, 0.1, False) == pytest.approx(
         0.95 * 2 + 0.05 * 1

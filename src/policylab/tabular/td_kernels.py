@@ -127,15 +127,20 @@ def sarsa_target(r: float, gamma: float, q_next: float, terminated: bool) -> flo
 
 @register_jitable
 def q_learning_target(
-    r: float, gamma: float, q_next_row: Any, mask_row: Any, terminated: bool
+    r: float, gamma: float, q: Any, mask: Any, s_next: int, terminated: bool
 ) -> float:
-    """The Q-learning target R_{t+1} + gamma max_a Q(S_{t+1}, a)  (S&B eq. 6.8)."""
+    """The Q-learning target R_{t+1} + gamma max_a Q(S_{t+1}, a)  (S&B eq. 6.8).
+
+    ``q`` and ``mask`` are the whole (S, A) tables and ``s_next`` the row of S_{t+1}
+    (indexing them here, rather than passing a row view, keeps the compiled step loop
+    free of array temporaries).
+    """
     if terminated:
         return r
     best = -np.inf
-    for a in range(q_next_row.shape[0]):
-        if mask_row[a] and q_next_row[a] > best:
-            best = q_next_row[a]
+    for a in range(q.shape[1]):
+        if mask[s_next, a] and q[s_next, a] > best:
+            best = q[s_next, a]
     return r + gamma * best
 
 
@@ -314,7 +319,7 @@ def one_step_control_kernel(
                     q_next = q1[s2, a2]
                 q1[s, a] = td_update(q1[s, a], alpha, sarsa_target(r, gamma, q_next, terminated))
             elif rule == 1:
-                target = q_learning_target(r, gamma, q1[s2], mask[s2], terminated)
+                target = q_learning_target(r, gamma, q1, mask, s2, terminated)
                 q1[s, a] = td_update(q1[s, a], alpha, target)
             elif rule == 2:
                 target = expected_sarsa_target(r, gamma, q1[s2], mask[s2], epsilon, terminated)
@@ -563,7 +568,7 @@ def dyna_q_kernel(
             counts[s, a] += 1
             alpha = schedule_value(alpha_params, float(counts[s, a]))
             q[s, a] = td_update(
-                q[s, a], alpha, q_learning_target(r, gamma, q[s2], mask[s2], terminated)
+                q[s, a], alpha, q_learning_target(r, gamma, q, mask, s2, terminated)
             )
             if model_next[s, a] == -1:
                 seen[0] += 1
@@ -577,7 +582,7 @@ def dyna_q_kernel(
                 p_term = pn <= -2
                 if p_term:
                     pn = -2 - pn
-                target = q_learning_target(model_reward[ps, pa], gamma, q[pn], mask[pn], p_term)
+                target = q_learning_target(model_reward[ps, pa], gamma, q, mask, pn, p_term)
                 counts[ps, pa] += 1
                 p_alpha = schedule_value(alpha_params, float(counts[ps, pa]))
                 q[ps, pa] = td_update(q[ps, pa], p_alpha, target)

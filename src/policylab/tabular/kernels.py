@@ -143,21 +143,29 @@ def sample_next(
 
 
 @nb.njit(cache=True, nogil=True)
+def _draw_index(
+    weights: NDArray[np.float64], state: NDArray[np.uint64]
+) -> int:  # pragma: no cover - compiled
+    """An index drawn with probability weights[i]; no draw if only one weight is positive."""
+    n = weights.shape[0]
+    first = -1
+    count = 0
+    for i in range(n):
+        if weights[i] > 0.0:
+            count += 1
+            if first < 0:
+                first = i
+    if count == 1:
+        return first
+    return _draw_from(weights, 0, n, state)
+
+
+@nb.njit(cache=True, nogil=True)
 def sample_start(
     initial: NDArray[np.float64], state: NDArray[np.uint64]
 ) -> int:  # pragma: no cover
     """A start state index drawn from the start distribution (no draw if it is one state)."""
-    n = initial.shape[0]
-    first = -1
-    count = 0
-    for s in range(n):
-        if initial[s] > 0.0:
-            count += 1
-            if first < 0:
-                first = s
-    if count == 1:
-        return first
-    return _draw_from(initial, 0, n, state)
+    return _draw_index(initial, state)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -165,17 +173,7 @@ def sample_action(
     pi_row: NDArray[np.float64], state: NDArray[np.uint64]
 ) -> int:  # pragma: no cover
     """An action index drawn from pi(. | s) (no draw if the policy is deterministic there)."""
-    n = pi_row.shape[0]
-    first = -1
-    count = 0
-    for a in range(n):
-        if pi_row[a] > 0.0:
-            count += 1
-            if first < 0:
-                first = a
-    if count == 1:
-        return first
-    return _draw_from(pi_row, 0, n, state)
+    return _draw_index(pi_row, state)
 
 
 @nb.njit(cache=True, nogil=True)

@@ -11,6 +11,7 @@ Compilation is excluded (one warm-up run first; kernels are cached on disk).
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from collections import defaultdict
@@ -127,6 +128,7 @@ def runners(mdp, make_env, uniform, model, algo):
 
 
 def main() -> None:
+    load0 = os.getloadavg()[0]
     quick = "--quick" in sys.argv
     grid = pl.problems.slippery_gridworld()
     bj = pl.problems.blackjack()
@@ -173,7 +175,9 @@ def main() -> None:
         "common reference notebooks (dict of returns, first-visit search, `rng.choice` per "
         "step) over the same Gymnasium env (`policylab/SlipperyGridworld-v0`, "
         "`Blackjack-v1` with `sab=True`), written in `benchmarks/bench_mc.py`. Compilation "
-        "excluded. Uniform random policy for prediction.",
+        "excluded. Uniform random policy for prediction. Load average during the run: "
+        f"{load0:.1f} -> {os.getloadavg()[0]:.1f} (the machine's 2 cores are shared with "
+        "other developers' work: figures are lower and noisier than on a quiet machine).",
         "",
         "| problem | algorithm | policylab compiled | policylab general path "
         "| baseline (plain Python) | speed-up vs baseline |",

@@ -28,7 +28,7 @@ import numpy as np
 import policylab as pl
 from policylab import tabular
 from policylab.tabular import td_kernels as tdk
-from policylab.tabular.common import StateIndex
+from policylab.tabular.common import GymStepper, StateIndex
 from policylab.tabular.kernels import KernelMDP, rng_states
 from policylab.tabular.schedules import Schedule
 
@@ -86,7 +86,7 @@ def kernel_steps(
         first = np.zeros(episodes, dtype=np.int64)
         rng = rng_states(0, 1)[0]
         if python:
-            env: Any = tdk.GymStepper(pl.MDPEnv(mdp), StateIndex.discrete(S), 0)
+            env: Any = GymStepper(pl.MDPEnv(mdp), StateIndex.discrete(S), 0)
             model = tdk.model_tuple(None)
             fn = tdk.one_step_control_kernel.py_func
         else:
@@ -97,6 +97,7 @@ def kernel_steps(
                 env,
                 model,
                 km.mask,
+                q1,
                 q1,
                 q1,
                 rule,
@@ -188,7 +189,8 @@ def main() -> None:
         "Environment steps per second on FrozenLake 8x8 (slippery), one core, epsilon 0.1, "
         "alpha 0.1, gamma 0.99 (best of repeats; target: >= 10 million/s and >= 200x the "
         f"plain loop). Load average during the run: {load0:.1f} -> {os.getloadavg()[0]:.1f} "
-        "(the machine's 2 cores are shared).",
+        "(the machine's 2 cores are shared with other developers' work: figures are lower "
+        "and noisier than on a quiet machine).",
         "",
         "| algorithm | implementation | steps/s | steps timed |",
         "|---|---|---:|---:|",

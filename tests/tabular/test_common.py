@@ -46,3 +46,18 @@ def test_ground_truth_errors_hand_computed():
     e_max, e_rms, share = truth.errors(q, None)
     assert e_max == pytest.approx(1.0) and e_rms == pytest.approx(1.0) and share == 1.0
     assert np.isnan(GroundTruth.control(mdp, on="v").errors(None, truth.v)[2])
+
+
+def test_ground_truth_is_solved_once_per_mdp_and_settings():
+    """Many runs of one study share one exact solve; other settings solve again."""
+    from policylab.planning import value_iteration
+
+    mdp = pl.problems.cliff_walking()
+    a = GroundTruth.control(mdp, on="q", gamma=0.9)
+    assert GroundTruth.control(mdp, on="q", gamma=0.9) is a
+    b = GroundTruth.control(mdp, on="q", gamma=0.5)
+    assert b is not a
+    np.testing.assert_allclose(b.v, value_iteration(mdp.with_gamma(0.5), tol=1e-10).v)
+    pol = pl.Policy.uniform(mdp)
+    p = GroundTruth.prediction(mdp, pol, on="v", gamma=0.9)
+    assert GroundTruth.prediction(mdp, pl.Policy.uniform(mdp), on="v", gamma=0.9) is p

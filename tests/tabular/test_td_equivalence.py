@@ -113,7 +113,9 @@ def test_update_rules_by_hand():
     assert tdk.td_update(1.0, 0.25, 3.0) == 1.5
     assert tdk.td_target(1.0, 0.5, 4.0, False) == 3.0
     assert tdk.td_target(1.0, 0.5, 4.0, True) == 1.0
-    assert tdk.q_learning_target(0.0, 1.0, q, mask, False) == 2.0  # 3.0 is unavailable
+    assert (
+        tdk.q_learning_target(0.0, 1.0, q[None], mask[None], 0, False) == 2.0
+    )  # 3.0 is unavailable
     # epsilon-greedy over {0, 2}: 0.9 + 0.05 on action 2, 0.05 on action 0.
     assert tdk.expected_sarsa_target(0.0, 1.0, q, mask, 0.1, False) == pytest.approx(
         0.95 * 2 + 0.05 * 1
@@ -172,6 +174,26 @@ def test_seed_study_matches_single_runs_and_is_reproducible(cliff):
     assert study.returns.shape == (4, 20)
     assert study.steps == int(study.lengths.sum())
     assert len({tuple(r) for r in study.returns}) > 1  # the runs differ
+    # a thin layer over run_seeds: run r is the learner alone with the r-th drawn seed
+    seeds = np.random.default_rng(9).integers(2**63 - 1, size=4)
+    for r in (0, 3):
+        alone = tab.sarsa(cliff, episodes=20, alpha=0.5, seed=int(seeds[r]))
+        np.testing.assert_array_equal(study.q[r], alone.q)
+        np.testing.assert_array_equal(study.returns[r], alone.episode_returns)
+        np.testing.assert_array_equal(study.lengths[r], alone.episode_lengths)
+        np.testing.assert_array_equal(study.first_actions[r], alone.first_actions)
+
+
+def test_result_keeps_episode_lengths_and_first_actions(cliff):
+    """Lengths add up to the steps; A_0 of every episode is the one the run took (the
+    start state's greedy action once Q has learned, alpha 1, epsilon 0)."""
+    res = tab.q_learning(cliff, episodes=30, alpha=1.0, epsilon=0.0, seed=2)
+    assert res.episode_lengths is not None and res.episode_lengths.sum() == res.steps
+    assert res.first_actions is not None and res.first_actions.shape == (30,)
+    assert "first_actions" not in res.params
+    start = int(np.flatnonzero(cliff.initial)[0])
+    assert res.first_actions[-1] == int(np.argmax(res.q[start]))
+    assert tab.sarsa_lambda(cliff, episodes=2, seed=0).first_actions is None
 
 
 def test_returns_and_steps_bookkeeping(cliff):

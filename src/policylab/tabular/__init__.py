@@ -20,16 +20,23 @@ Layout
                ``schedule_value(params, n)``, the one function kernels evaluate.
 ``kernels``    the kernel conventions: per-run xoshiro RNG states from a seed
                (:func:`~policylab.tabular.kernels.rng_states`), sampling from the
-               outcome table, epsilon-greedy action choice, :func:`generate_episode`.
+               outcome table, epsilon-greedy action choice, :func:`generate_episode`,
+               and ``env_reset``/``env_step``, through which a kernel reaches its
+               environment (the model's arrays compiled, a ``GymStepper`` as Python).
 ``truth``      :class:`GroundTruth`: exact v_pi/q_pi or v*/q* (from policylab.planning)
                and the error of an estimate (max, RMS, share of optimal greedy actions).
-``common``     ``run_seeds`` (several seeds at once, on threads), argument checks,
-               checkpoints, the :class:`~policylab.tabular.common.Recorder` of the
-               error curve, progress bars, the general path's ``StateIndex``.
+``common``     ``run_seeds`` (several seeds at once, on threads; ``seed_study`` stacks
+               its results), argument checks (``check_count``, ``check_fraction``,
+               ``check_gamma``), checkpoints, the
+               :class:`~policylab.tabular.common.Recorder` of the error curve, progress
+               bars, and the general path: ``as_env``, ``env_name``, ``StateIndex``,
+               ``GymStepper``.
 ``result``     :class:`LearnResult`, the one result type (``to_json()`` is the CLI's
                ``--json``).
 ``registry``   the algorithm registry ``policylab learn ALGO PROBLEM`` reads.
 ``mc``         Monte Carlo prediction, control and off-policy learning.
+``td``         the TD family (chapters 6, 7, 8, 12) and ``seed_study``; its kernels,
+               one source for both paths, are in ``td_kernels``.
 
 How to add an algorithm (e.g. SARSA, in ``policylab/tabular/td.py``)
 -------------------------------------------------------------------

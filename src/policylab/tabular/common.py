@@ -1,6 +1,8 @@
 """What every tabular learner shares: checks, checkpoints, error recorder, progress.
 
-Also the general path's observation index over a Gymnasium env.
+Also the general path over a Gymnasium env: :func:`as_env` (the checked env),
+:func:`env_name`, the observation index :class:`StateIndex` and :class:`GymStepper`
+(the env behind the kernels' ``env_reset`` / ``env_step``).
 
 A learner's body reads top to bottom as (see :mod:`policylab.tabular.mc`)::
 
@@ -32,11 +34,16 @@ if TYPE_CHECKING:
     from policylab.tabular.truth import GroundTruth
 
 __all__ = [
+    "GymStepper",
     "Recorder",
     "StateIndex",
+    "as_env",
+    "check_count",
     "check_episodes",
+    "check_fraction",
     "check_gamma",
     "checkpoint_episodes",
+    "env_name",
     "is_finite_mdp",
     "progress_bar",
     "run_seeds",
@@ -44,24 +51,37 @@ __all__ = [
 ]
 
 
+def check_count(value: Any, what: str, minimum: int = 1) -> int:
+    """An integer >= ``minimum`` (episodes, seeds, n, planning steps), or an error.
+
+    Raises:
+        InvalidArgumentError: Naming ``what``, the bound and the value given.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        bound = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
+        raise InvalidArgumentError(f"{what} must be {bound}; got {value!r}")
+    return int(value)
+
+
 def check_episodes(episodes: Any, what: str = "episodes") -> int:
     """A positive integer number of episodes, or an InvalidArgumentError."""
-    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
-        raise InvalidArgumentError(f"{what} must be a positive integer; got {episodes!r}")
-    return int(episodes)
+    return check_count(episodes, what)
+
+
+def check_fraction(value: Any, what: str) -> float:
+    """A number in [0, 1] (gamma, lambda), or an InvalidArgumentError naming ``what``."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(f"{what} must be a number in [0, 1]; got {value!r}") from None
+    if not 0.0 <= x <= 1.0:
+        raise InvalidArgumentError(f"{what} must be in [0, 1]; got {value!r}")
+    return x
 
 
 def check_gamma(gamma: Any, default: float) -> float:
     """Gamma in [0, 1] (None: the problem's own)."""
-    if gamma is None:
-        return float(default)
-    try:
-        g = float(gamma)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError(f"gamma must be a number in [0, 1]; got {gamma!r}") from None
-    if not 0.0 <= g <= 1.0:
-        raise InvalidArgumentError(f"gamma must be in [0, 1]; got {gamma!r}")
-    return g
+    return float(default) if gamma is None else check_fraction(gamma, "gamma")
 
 
 def checkpoint_episodes(episodes: int, checkpoints: int = 50) -> NDArray[np.int64]:
@@ -88,6 +108,41 @@ def is_finite_mdp(problem: Any) -> bool:
     from policylab.mdp.finite import FiniteMDP
 
     return isinstance(problem, FiniteMDP)
+
+
+def as_env(problem: Any) -> Any:
+    """The Gymnasium env of a learner's general path, checked.
+
+    Args:
+        problem: A Gymnasium env, or a registered Gymnasium id (``"FrozenLake-v1"``),
+            which is made with ``gymnasium.make``.
+
+    Returns:
+        The env.
+
+    Raises:
+        InvalidArgumentError: If ``problem`` has no ``reset``/``step`` or its action
+            space is not ``Discrete``.
+    """
+    import gymnasium as gym
+    from gymnasium import spaces
+
+    env = gym.make(problem) if isinstance(problem, str) else problem
+    if not hasattr(env, "reset") or not hasattr(env, "step"):
+        raise InvalidArgumentError(
+            f"problem must be a FiniteMDP or a Gymnasium env; got {type(problem).__name__}"
+        )
+    if not isinstance(env.action_space, spaces.Discrete):
+        raise InvalidArgumentError(
+            f"tabular learners need a Discrete action space; got {env.action_space}"
+        )
+    return env
+
+
+def env_name(env: Any) -> str:
+    """A display name of an env: its Gymnasium id if registered, else its class name."""
+    spec = getattr(env, "spec", None)
+    return str(getattr(spec, "id", None) or type(getattr(env, "unwrapped", env)).__name__)
 
 
 def start_state(mdp: FiniteMDP, start: Hashable | None) -> NDArray[np.float64]:
@@ -269,6 +324,48 @@ class StateIndex:
         self._index[key] = len(self._labels)
         self._labels.append(key)
         return len(self._labels) - 1
+
+
+class GymStepper:
+    """A Gymnasium env seen through the kernels' two calls (the general path).
+
+    :func:`~policylab.tabular.kernels.env_reset` and
+    :func:`~policylab.tabular.kernels.env_step` call :meth:`reset` and :meth:`step`
+    when a kernel runs as plain Python. Observations become table rows through
+    ``index`` (a :class:`StateIndex` with a fixed size). The first :meth:`reset` seeds
+    the env with ``env_seed``; later resets continue its stream.
+
+    Args:
+        env: The Gymnasium env.
+        index: Its observations' rows.
+        env_seed: Seed of the first ``env.reset`` (None: unseeded).
+    """
+
+    def __init__(self, env: Any, index: StateIndex, env_seed: int | None) -> None:
+        self.env = env
+        self.index = index
+        self._seed = env_seed
+
+    def reset(self) -> int:
+        """Start an episode; return the row of S_0."""
+        obs, _ = self.env.reset(seed=self._seed)
+        self._seed = None
+        return int(self.index(obs))
+
+    def step(self, a: int) -> tuple[int, float, bool, bool]:
+        """Take A_t; return (row of S_{t+1}, R_{t+1}, terminated, truncated).
+
+        A terminal observation that is not one of the index's states (Blackjack-v1's
+        final hands) gets row 0: no update ever reads the value of a terminal state.
+        """
+        obs, r, terminated, truncated, _ = self.env.step(int(a))
+        try:
+            row = int(self.index(obs))
+        except UnknownLabelError:
+            if not terminated:
+                raise
+            row = 0
+        return row, float(r), bool(terminated), bool(truncated)
 
 
 def grow_rows(arr: NDArray[Any], n: int, fill: Any = 0) -> NDArray[Any]:

@@ -33,6 +33,8 @@ from typing import TYPE_CHECKING, Any
 
 import numba as nb
 import numpy as np
+from numba import types
+from numba.extending import overload
 
 from policylab.tabular.schedules import schedule_value
 
@@ -45,6 +47,8 @@ __all__ = [
     "EPSILON_GREEDY",
     "FIXED_POLICY",
     "KernelMDP",
+    "env_reset",
+    "env_step",
     "epsilon_greedy_action",
     "epsilon_greedy_prob",
     "exploring_start_state",
@@ -139,21 +143,29 @@ def sample_next(
 
 
 @nb.njit(cache=True, nogil=True)
+def _draw_index(
+    weights: NDArray[np.float64], state: NDArray[np.uint64]
+) -> int:  # pragma: no cover - compiled
+    """An index drawn with probability weights[i]; no draw if only one weight is positive."""
+    n = weights.shape[0]
+    first = -1
+    count = 0
+    for i in range(n):
+        if weights[i] > 0.0:
+            count += 1
+            if first < 0:
+                first = i
+    if count == 1:
+        return first
+    return _draw_from(weights, 0, n, state)
+
+
+@nb.njit(cache=True, nogil=True)
 def sample_start(
     initial: NDArray[np.float64], state: NDArray[np.uint64]
 ) -> int:  # pragma: no cover
     """A start state index drawn from the start distribution (no draw if it is one state)."""
-    n = initial.shape[0]
-    first = -1
-    count = 0
-    for s in range(n):
-        if initial[s] > 0.0:
-            count += 1
-            if first < 0:
-                first = s
-    if count == 1:
-        return first
-    return _draw_from(initial, 0, n, state)
+    return _draw_index(initial, state)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -161,17 +173,7 @@ def sample_action(
     pi_row: NDArray[np.float64], state: NDArray[np.uint64]
 ) -> int:  # pragma: no cover
     """An action index drawn from pi(. | s) (no draw if the policy is deterministic there)."""
-    n = pi_row.shape[0]
-    first = -1
-    count = 0
-    for a in range(n):
-        if pi_row[a] > 0.0:
-            count += 1
-            if first < 0:
-                first = a
-    if count == 1:
-        return first
-    return _draw_from(pi_row, 0, n, state)
+    return _draw_index(pi_row, state)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -365,6 +367,56 @@ def generate_episode(
         t += 1
         buf_s[t] = s
     return t
+
+
+# ---------------------------------------------------------------------------- the environment
+def env_reset(env: Any, initial: Any, rng: Any) -> int:
+    """S_0: ``env.reset()`` (general path) or a draw from the model's start distribution.
+
+    On the compiled path ``env`` is None and the model's arrays are given (unpacked once
+    per kernel: a tuple read inside the loop would cost reference counting each step).
+    """
+    return int(env.reset())
+
+
+def env_step(
+    env: Any,
+    s: int,
+    a: int,
+    rng: Any,
+    indptr: Any,
+    next_states: Any,
+    probs: Any,
+    rewards: Any,
+    terminal: Any,
+    n_actions: int,
+) -> tuple[int, float, bool, bool]:
+    """(S_{t+1}, R_{t+1}, terminated, truncated) after A_t = a in S_t = s.
+
+    General path: ``env.step(a)``. Compiled path (``env`` None): one outcome of row
+    ``s * A + a`` of the outcome table drawn with the shared ``sample_next``.
+    """
+    return env.step(a)  # type: ignore[no-any-return]
+
+
+@overload(env_reset)
+def _env_reset_model(env, initial, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
+    if isinstance(env, types.NoneType):
+        return lambda env, initial, rng: sample_start(initial, rng)
+    return None
+
+
+@overload(env_step)
+def _env_step_model(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]  # pragma: no cover
+    if isinstance(env, types.NoneType):
+
+        def impl(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]
+            k = sample_next(indptr, probs, s * n_actions + a, rng)
+            nxt = int(next_states[k])
+            return nxt, float(rewards[k]), bool(terminal[nxt]), False
+
+        return impl
+    return None
 
 
 def writable(x: Any, dtype: Any) -> NDArray[Any]:

@@ -39,9 +39,11 @@ from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
 from policylab.tabular.common import (
     Recorder,
     StateIndex,
+    as_env,
     check_episodes,
     check_gamma,
     checkpoint_episodes,
+    env_name,
     grow_rows,
     is_finite_mdp,
     progress_bar,
@@ -408,7 +410,7 @@ def _run(
         mdp = problem
         env = None
     else:
-        env = _as_env(problem)
+        env = as_env(problem)
         mdp = model if model is not None else getattr(getattr(env, "unwrapped", env), "mdp", None)
         if start is not None:
             raise InvalidArgumentError(
@@ -498,7 +500,7 @@ def _run(
     v[terminal] = 0.0
     return LearnResult(
         algorithm=algorithm,
-        problem=mdp.name if mdp is not None else _env_name(env),
+        problem=mdp.name if mdp is not None else env_name(env),
         states=tuple(index_labels),
         actions=tuple(actions),
         q=q,
@@ -599,28 +601,6 @@ def _run_fast(
 
 
 # =============================================================================== general path
-def _as_env(problem: Any) -> Any:
-    """A Gymnasium env from an env or an id string; checks its action space."""
-    import gymnasium as gym
-    from gymnasium import spaces
-
-    env = gym.make(problem) if isinstance(problem, str) else problem
-    if not hasattr(env, "reset") or not hasattr(env, "step"):
-        raise InvalidArgumentError(
-            f"problem must be a FiniteMDP or a Gymnasium env; got {type(problem).__name__}"
-        )
-    if not isinstance(env.action_space, spaces.Discrete):
-        raise InvalidArgumentError(
-            f"tabular learners need a Discrete action space; got {env.action_space}"
-        )
-    return env
-
-
-def _env_name(env: Any) -> str:
-    spec = getattr(env, "spec", None)
-    return str(getattr(spec, "id", None) or type(getattr(env, "unwrapped", env)).__name__)
-
-
 def _run_env(
     env: Any,
     mdp: FiniteMDP | None,
@@ -793,7 +773,7 @@ def _fixed_policy(
 
     mdp = problem if is_finite_mdp(problem) else model
     if mdp is None and not is_finite_mdp(problem):
-        env = _as_env(problem)
+        env = as_env(problem)
         mdp = getattr(getattr(env, "unwrapped", env), "mdp", None)
     if policy is None:
         if mdp is None:

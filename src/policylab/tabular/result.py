@@ -50,6 +50,10 @@ class LearnResult:
         error_target: What the error is measured against (``"q_pi"``, ``"v_pi"``,
             ``"q*"``, ``"v*"``), or None without a known model.
         truncated: Episodes cut by the step limit (not used for Monte Carlo updates).
+        episode_lengths: (episodes,) the steps of every episode, or None where the
+            learner does not keep them (Monte Carlo).
+        first_actions: (episodes,) the index of A_0 of every episode (one-step TD
+            control: Figure 6.5 counts the "left" actions in A), else None.
         params: The settings of the run (for the record and for displays).
         mdp: The FiniteMDP learned on, if any (for :meth:`to_policy` and figures).
     """
@@ -74,6 +78,8 @@ class LearnResult:
     optimal_actions: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     error_target: str | None = None
     truncated: int = 0
+    episode_lengths: NDArray[np.int64] | None = None
+    first_actions: NDArray[np.int64] | None = None
     params: dict[str, Any] = field(default_factory=dict)
     mdp: FiniteMDP | None = None
 

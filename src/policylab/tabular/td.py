@@ -35,16 +35,21 @@ import numpy as np
 from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
 from policylab.tabular import td_kernels as tdk
 from policylab.tabular.common import (
+    GymStepper,
     Recorder,
     StateIndex,
+    as_env,
+    check_count,
     check_episodes,
+    check_fraction,
     check_gamma,
     checkpoint_episodes,
+    env_name,
     is_finite_mdp,
     progress_bar,
+    run_seeds,
 )
 from policylab.tabular.kernels import KernelMDP, rng_states
-from policylab.tabular.mc import _as_env, _env_name
 from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule
@@ -114,14 +119,14 @@ def _resolve(problem: Any, model: FiniteMDP | None) -> _Problem:
         )
     from gymnasium import spaces
 
-    env = _as_env(problem)  # the shared check: a Gymnasium env with Discrete actions
+    env = as_env(problem)  # the shared check: a Gymnasium env with Discrete actions
     base = getattr(env, "unwrapped", env)
     mdp: FiniteMDP | None = model if model is not None else getattr(base, "mdp", None)
     if mdp is None and getattr(base, "P", None) is not None:
         from policylab.mdp.finite import FiniteMDP
 
-        mdp = FiniteMDP.from_gymnasium(base, name=_env_name(env))
-    name = _env_name(env)
+        mdp = FiniteMDP.from_gymnasium(base, name=env_name(env))
+    name = env_name(env)
     A = int(env.action_space.n)
     space = env.observation_space
     if mdp is not None and mdp.n_actions != A:
@@ -241,6 +246,7 @@ class _Run:
     w: NDArray[np.float64]
     episodes: int
     q2: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
+    qb: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
     counts: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     returns: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     lengths: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
@@ -274,7 +280,8 @@ class _Run:
             env: Any = None
             model = tdk.model_tuple(KernelMDP.of(P.mdp, gamma))
         else:  # general path: the kernel steps the Gymnasium env
-            env = tdk.GymStepper(P.env, P.index, env_seed)
+            assert P.index is not None  # the general path always has an index
+            env = GymStepper(P.env, P.index, env_seed)
             model = tdk.model_tuple(None)
         run = cls(algo, P, pi, gamma, alpha, epsilon, max_steps, rng, env, model, w, episodes)
         run.counts = np.zeros((S, cols), dtype=np.int64)
@@ -283,6 +290,7 @@ class _Run:
         run.first_actions = np.full(episodes, -1, dtype=np.int64)
         if algo.rule == tdk.DOUBLE_Q:
             run.q2 = w.copy()
+            run.qb = run.w + run.q2  # the behaviour's Q1 + Q2, kept up to date by the kernel
         if algo.family == "dyna":
             run.model_next = np.full((S, A), -1, dtype=np.int64)
             run.model_reward = np.zeros((S, A))
@@ -317,14 +325,15 @@ class _Run:
                 )
             )
         if a.family == "one_step":
-            q2 = self.q2 if a.rule == tdk.DOUBLE_Q else self.w
+            double = a.rule == tdk.DOUBLE_Q
             return int(
                 kernel(tdk.one_step_control_kernel)(
                     self.env,
                     self.model,
                     P.mask,
                     self.w,
-                    q2,
+                    self.q2 if double else self.w,
+                    self.qb if double else self.w,
                     a.rule,
                     k0,
                     k1,
@@ -448,7 +457,7 @@ def _prepare(
     epsilon: Schedule | float | str | None,
     max_steps: int,
 ) -> tuple[_Problem, NDArray[np.float64], Policy | None, float, Schedule, Schedule, int, int]:
-    """Checked arguments shared by :func:`_learn` and :func:`seed_study`."""
+    """The checked arguments of :func:`_learn`."""
     episodes = check_episodes(episodes)
     max_steps = check_episodes(max_steps, "max_steps")
     P = _resolve(problem, model)
@@ -546,6 +555,8 @@ def _learn(
         seconds=seconds,
         episode_returns=run.returns,
         truncated=int(np.sum(run.lengths >= max_steps)),
+        episode_lengths=run.lengths,
+        first_actions=run.first_actions if algo.family == "one_step" else None,
         params={
             **(params or {}),
             "alpha": str(a),
@@ -553,7 +564,6 @@ def _learn(
             "gamma": g,
             "seed": seed if isinstance(seed, int | np.integer) else None,
             "path": "compiled" if P.env is None else "gymnasium",
-            "first_actions": run.first_actions if algo.family == "one_step" else None,
         },
         mdp=P.mdp,
         **rec.arrays(),
@@ -632,26 +642,26 @@ def seed_study(
     seed: Seed = 0,
     episodes: int = 500,
     policy: Any = None,
-    progress: bool = False,
+    workers: int | None = None,
     **options: Any,
 ) -> SeedRuns:
     """Run a TD learner ``seeds`` times independently (the many-seed studies of the book).
 
-    The arrays the book's figures average: every episode's return, length and first
-    action for every run, without the error curve against the exact answer. On a
-    FiniteMDP every run is one call of the compiled kernel over all its episodes; run r
-    uses the r-th RNG state of ``rng_states(seed, seeds)``, so the study is
-    reproducible. (:func:`~policylab.tabular.run_seeds` instead gives one full
-    :class:`LearnResult` per seed, error curves included, on threads.)
+    A thin layer over :func:`~policylab.tabular.run_seeds`: the seeds of the runs are
+    drawn from ``seed`` (``numpy.random.default_rng(seed).integers(2**63 - 1, size=seeds)``),
+    so run r is exactly ``learner(problem, seed=seeds_r, episodes=episodes, **options)``
+    alone, and the per-run results are stacked into the arrays the book's figures
+    average: every episode's return, length and first action for every run.
 
     Args:
         algorithm: A TD algorithm's registry name (``"sarsa"``, ``"q-learning"``, ...).
-        problem: A FiniteMDP or a Gymnasium env with discrete observations.
+        problem: A FiniteMDP (several runs at once, see :func:`run_seeds`) or a Gymnasium
+            env with discrete observations (runs one after the other).
         seeds: Number of independent runs.
         seed: Seed of the whole study.
         episodes: Episodes per run.
         policy: The policy evaluated (prediction methods).
-        progress: Show a progress bar over runs.
+        workers: Threads for :func:`run_seeds` (default: the number of CPUs).
         **options: The learner's own keyword arguments (``alpha``, ``epsilon``, ``n``,
             ``lam``, ``trace``, ``planning_steps``, ``gamma``, ``max_steps``, ``init``, ...).
 
@@ -659,99 +669,50 @@ def seed_study(
         A :class:`SeedRuns`.
     """
     name = algorithm.strip().lower().replace("_", "-")
-    if name not in _ALGOS:
+    if name not in _LEARNERS:
         raise InvalidArgumentError(
-            f"unknown TD algorithm {algorithm!r}; known: {', '.join(sorted(_ALGOS))}"
+            f"unknown TD algorithm {algorithm!r}; known: {', '.join(sorted(_LEARNERS))}"
         )
+    learner, allowed = _LEARNERS[name]
+    unknown = sorted(set(options) - allowed - _COMMON_OPTIONS)
+    if unknown:
+        raise InvalidArgumentError(f"{name}: unknown options {unknown}")
+    control = "epsilon" in allowed
+    if control and policy is not None:
+        raise InvalidArgumentError(f"{name} is a control method; it takes no policy")
     n_runs = check_episodes(seeds, "seeds")
-    opts = dict(options)
-    algo = _ALGOS[name](opts)
-    init = float(opts.pop("init", 0.0))
-    gamma, alpha, epsilon = (
-        opts.pop("gamma", None),
-        opts.pop("alpha", None),
-        opts.pop("epsilon", None),
-    )
-    max_steps = int(opts.pop("max_steps", 10_000))
-    model = opts.pop("model", None)
-    if opts:
-        raise InvalidArgumentError(f"{name}: unknown options {sorted(opts)}")
-    P, pi, _, g, a, e, episodes, max_steps = _prepare(
-        algo,
-        problem,
-        policy,
-        model=model,
-        episodes=episodes,
-        gamma=gamma,
-        alpha=alpha,
-        epsilon=epsilon,
-        max_steps=max_steps,
-    )
-    gen = np.random.default_rng(seed)
-    states = rng_states(gen, n_runs)
-    env_seeds = gen.integers(2**31 - 1, size=n_runs)
-    S, A = P.n_states, P.n_actions
-    out_r = np.zeros((n_runs, episodes))
-    out_l = np.zeros((n_runs, episodes), dtype=np.int64)
-    out_q = np.zeros((n_runs, S, A))
-    out_v = np.zeros((n_runs, S))
-    out_f = np.zeros((n_runs, episodes), dtype=np.int64)
-    steps = 0
+    seed_list = [int(x) for x in np.random.default_rng(seed).integers(2**63 - 1, size=n_runs)]
+    kwargs = dict(options, episodes=episodes, checkpoints=1)
+    if not control:
+        kwargs["policy"] = policy
     t0 = time.perf_counter()
-    with progress_bar(progress, n_runs, f"{name} x {n_runs} seeds") as advance:
-        for r in range(n_runs):
-            run = _Run.start(
-                algo,
-                P,
-                pi,
-                gamma=g,
-                alpha=a,
-                epsilon=e,
-                max_steps=max_steps,
-                rng=states[r],
-                env_seed=int(env_seeds[r]),
-                episodes=episodes,
-                init=init,
-            )
-            steps += run(0, episodes)
-            _warn_if_diverged(algo, run, a)
-            out_r[r], out_l[r], out_q[r], out_v[r], out_f[r] = (
-                run.returns,
-                run.lengths,
-                run.q,
-                run.v,
-                run.first_actions,
-            )
-            advance(1)
+    if is_finite_mdp(problem):
+        results = run_seeds(learner, problem, seed_list, workers=workers, **kwargs)
+    else:  # an env cannot be shared between threads
+        results = [learner(problem, seed=s, **kwargs) for s in seed_list]
+    seconds = time.perf_counter() - t0
+    first = [r.first_actions for r in results]
     return SeedRuns(
         name,
-        P.name,
+        results[0].problem,
         n_runs,
-        out_r,
-        out_l,
-        out_q,
-        out_v,
-        out_f if algo.family == "one_step" else None,
-        int(steps),
-        time.perf_counter() - t0,
+        np.stack([r.episode_returns for r in results]),
+        np.stack([r.episode_lengths for r in results]),
+        np.stack([r.q for r in results]),
+        np.stack([r.v for r in results]),
+        None if any(f is None for f in first) else np.stack(first),
+        sum(r.steps for r in results),
+        seconds,
     )
 
 
 # =============================================================================== learners
 def _check_n(n: Any) -> int:
-    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-        raise InvalidArgumentError(f"n (the number of steps) must be a positive integer; got {n!r}")
-    return int(n)
+    return check_count(n, "n (the number of steps)")
 
 
 def _check_lambda(lam: Any) -> float:
-    try:
-        x = float(lam)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError(f"lambda must be a number in [0, 1]; got {lam!r}") from None
-    if not 0.0 <= x <= 1.0:
-        raise InvalidArgumentError(f"lambda must be in [0, 1]; got {lam!r}")
-    return x
+    return check_fraction(lam, "lambda")
 
 
 def _check_trace(trace: Any) -> int:
@@ -762,9 +723,7 @@ def _check_trace(trace: Any) -> int:
 
 
 def _check_planning(k: Any) -> int:
-    if isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 0:
-        raise InvalidArgumentError(f"planning_steps must be an integer >= 0; got {k!r}")
-    return int(k)
+    return check_count(k, "planning_steps", minimum=0)
 
 
 def td0(
@@ -1223,31 +1182,21 @@ for _fn in (
 
 
 # =============================================================================== registry
-_ALGOS: dict[str, Any] = {
-    "td0": lambda o: _Algo("td0", "td0", False),
-    "n-step-td": lambda o: _Algo("n-step-td", "n_step", False, n=_check_n(o.pop("n", 4))),
-    "td-lambda": lambda o: _Algo(
-        "td-lambda",
-        "lambda",
-        False,
-        lam=_check_lambda(o.pop("lam", 0.8)),
-        trace=_check_trace(o.pop("trace", "accumulating")),
-    ),
-    "sarsa": lambda o: _Algo("sarsa", "one_step", True, rule=tdk.SARSA),
-    "q-learning": lambda o: _Algo("q-learning", "one_step", True, rule=tdk.Q_LEARNING),
-    "expected-sarsa": lambda o: _Algo("expected-sarsa", "one_step", True, rule=tdk.EXPECTED_SARSA),
-    "double-q-learning": lambda o: _Algo("double-q-learning", "one_step", True, rule=tdk.DOUBLE_Q),
-    "n-step-sarsa": lambda o: _Algo("n-step-sarsa", "n_step", True, n=_check_n(o.pop("n", 4))),
-    "sarsa-lambda": lambda o: _Algo(
-        "sarsa-lambda",
-        "lambda",
-        True,
-        lam=_check_lambda(o.pop("lam", 0.8)),
-        trace=_check_trace(o.pop("trace", "accumulating")),
-    ),
-    "dyna-q": lambda o: _Algo(
-        "dyna-q", "dyna", True, planning=_check_planning(o.pop("planning_steps", 5))
-    ),
+#: Options every TD learner takes (besides problem, policy, episodes, seed).
+_COMMON_OPTIONS = {"alpha", "gamma", "init", "max_steps", "model"}
+_CONTROL = {"epsilon"}
+#: name -> (learner, its own options): what :func:`seed_study` calls.
+_LEARNERS: dict[str, tuple[Any, set[str]]] = {
+    "td0": (td0, set()),
+    "n-step-td": (n_step_td, {"n"}),
+    "td-lambda": (td_lambda, {"lam", "trace"}),
+    "sarsa": (sarsa, _CONTROL),
+    "q-learning": (q_learning, _CONTROL),
+    "expected-sarsa": (expected_sarsa, _CONTROL),
+    "double-q-learning": (double_q_learning, _CONTROL),
+    "n-step-sarsa": (n_step_sarsa, _CONTROL | {"n"}),
+    "sarsa-lambda": (sarsa_lambda, _CONTROL | {"lam", "trace"}),
+    "dyna-q": (dyna_q, _CONTROL | {"planning_steps"}),
 }
 
 _ALPHA = Option(

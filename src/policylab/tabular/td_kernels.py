@@ -34,17 +34,17 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import njit, types
-from numba.extending import overload, register_jitable
+from numba import njit
+from numba.extending import register_jitable
 
-from policylab.exceptions import UnknownLabelError
 from policylab.tabular.kernels import (
+    env_reset,
+    env_step,
     epsilon_greedy_action,
     epsilon_greedy_prob,
     rand_below,
     sample_action,
     sample_next,
-    sample_start,
 )
 from policylab.tabular.schedules import schedule_value
 
@@ -55,11 +55,8 @@ __all__ = [
     "SARSA",
     "TRACE_ACCUMULATING",
     "TRACE_REPLACING",
-    "GymStepper",
     "double_q_target",
     "dyna_q_kernel",
-    "env_reset",
-    "env_step",
     "expected_sarsa_target",
     "lambda_kernel",
     "model_tuple",
@@ -99,90 +96,6 @@ def model_tuple(km: Any | None) -> tuple[Any, ...]:
     return (km.indptr, km.next_states, km.probs, km.rewards, km.terminal, km.initial)
 
 
-class GymStepper:
-    """A Gymnasium env seen through the kernels' two calls (the general path).
-
-    Observations become table rows through ``index`` (a
-    :class:`~policylab.tabular.common.StateIndex` with a fixed size). The first
-    :meth:`reset` seeds the env with ``env_seed``; later resets continue its stream.
-    """
-
-    def __init__(self, env: Any, index: Any, env_seed: int | None) -> None:
-        self.env = env
-        self.index = index
-        self._seed = env_seed
-
-    def reset(self) -> int:
-        """Start an episode; return the row of S_0."""
-        obs, _ = self.env.reset(seed=self._seed)
-        self._seed = None
-        return int(self.index(obs))
-
-    def step(self, a: int) -> tuple[int, float, bool, bool]:
-        """Take A_t; return (row of S_{t+1}, R_{t+1}, terminated, truncated).
-
-        A terminal observation that is not one of the index's states (Blackjack-v1's
-        final hands) gets row 0: no update ever reads the value of a terminal state.
-        """
-        obs, r, terminated, truncated, _ = self.env.step(int(a))
-        try:
-            row = int(self.index(obs))
-        except UnknownLabelError:
-            if not terminated:
-                raise
-            row = 0
-        return row, float(r), bool(terminated), bool(truncated)
-
-
-def env_reset(env: Any, initial: Any, rng: Any) -> int:
-    """S_0: ``env.reset()`` (general path) or a draw from the model's start distribution.
-
-    On the compiled path ``env`` is None and the model's arrays are given (unpacked once
-    per kernel: a tuple read inside the loop would cost reference counting each step).
-    """
-    return int(env.reset())
-
-
-def env_step(
-    env: Any,
-    s: int,
-    a: int,
-    rng: Any,
-    indptr: Any,
-    next_states: Any,
-    probs: Any,
-    rewards: Any,
-    terminal: Any,
-    n_actions: int,
-) -> tuple[int, float, bool, bool]:
-    """(S_{t+1}, R_{t+1}, terminated, truncated) after A_t = a in S_t = s.
-
-    General path: ``env.step(a)``. Compiled path (``env`` None): one outcome of row
-    ``s * A + a`` of the outcome table drawn with the shared ``sample_next``.
-    """
-    return env.step(a)  # type: ignore[no-any-return]
-
-
-@overload(env_reset, inline="always")
-def _env_reset_model(env, initial, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
-    if isinstance(env, types.NoneType):
-        return lambda env, initial, rng: sample_start(initial, rng)
-    return None
-
-
-@overload(env_step, inline="always")
-def _env_step_model(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]  # pragma: no cover
-    if isinstance(env, types.NoneType):
-
-        def impl(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]
-            k = sample_next(indptr, probs, s * n_actions + a, rng)
-            nxt = int(next_states[k])
-            return nxt, float(rewards[k]), bool(terminal[nxt]), False
-
-        return impl
-    return None
-
-
 # ---------------------------------------------------------------------------- update rules
 @register_jitable
 def td_update(estimate: float, alpha: float, target: float) -> float:
@@ -214,15 +127,20 @@ def sarsa_target(r: float, gamma: float, q_next: float, terminated: bool) -> flo
 
 @register_jitable
 def q_learning_target(
-    r: float, gamma: float, q_next_row: Any, mask_row: Any, terminated: bool
+    r: float, gamma: float, q: Any, mask: Any, s_next: int, terminated: bool
 ) -> float:
-    """The Q-learning target R_{t+1} + gamma max_a Q(S_{t+1}, a)  (S&B eq. 6.8)."""
+    """The Q-learning target R_{t+1} + gamma max_a Q(S_{t+1}, a)  (S&B eq. 6.8).
+
+    ``q`` and ``mask`` are the whole (S, A) tables and ``s_next`` the row of S_{t+1}
+    (indexing them here, rather than passing a row view, keeps the compiled step loop
+    free of array temporaries).
+    """
     if terminated:
         return r
     best = -np.inf
-    for a in range(q_next_row.shape[0]):
-        if mask_row[a] and q_next_row[a] > best:
-            best = q_next_row[a]
+    for a in range(q.shape[1]):
+        if mask[s_next, a] and q[s_next, a] > best:
+            best = q[s_next, a]
     return r + gamma * best
 
 
@@ -329,13 +247,6 @@ def td0_kernel(
 
 
 # ---------------------------------------------------------------------------- one-step control
-@register_jitable
-def _sum_rows(q1: Any, q2: Any, s: int, out: Any) -> None:
-    """Out <- Q1(s, .) + Q2(s, .): the values Double Q-learning's behaviour acts on."""
-    for a in range(q1.shape[1]):
-        out[a] = q1[s, a] + q2[s, a]
-
-
 @njit(cache=True, nogil=True)
 def one_step_control_kernel(
     env: Any,
@@ -343,6 +254,7 @@ def one_step_control_kernel(
     mask: Any,
     q1: Any,
     q2: Any,
+    qb: Any,
     rule: int,
     k0: int,
     k1: int,
@@ -364,24 +276,36 @@ def one_step_control_kernel(
     R + gamma E_pi Q(S', .), and the next action is chosen after the update (the
     book's boxes). :data:`DOUBLE_Q`: a fair coin picks which of Q1, Q2 is updated
     (the other one values the argmax); behaviour is epsilon-greedy in Q1 + Q2.
+    ``qb`` is the table the behaviour is epsilon-greedy in: ``q1`` itself, or for
+    Double Q-learning a table kept equal to Q1 + Q2 entry by entry (one sum per update
+    instead of one per step: the step loop then reads a single table, which keeps the
+    compiled loop free of per-step array temporaries).
     ``first_actions[k]`` receives A_0 of episode k (Figure 6.5 counts "left" in A).
+
+    The step is :func:`~policylab.tabular.kernels.env_step` written out in the loop
+    (numba prunes the ``env is None`` branch): the call, with its six array arguments,
+    cost this hottest loop a third of its speed (issue 5's 10 M steps/s target).
     """
     indptr, next_states, probs, rewards, terminal, initial = model
     n_actions = mask.shape[1]
-    qsum = np.zeros(q1.shape[1])
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
         s = env_reset(env, initial, rng)
-        if rule == 3:
-            _sum_rows(q1, q2, s, qsum)
-        a = epsilon_greedy_action(qsum if rule == 3 else q1[s], mask[s], epsilon, rng)
+        a = epsilon_greedy_action(qb[s], mask[s], epsilon, rng)
         first_actions[k] = a
         g, disc, t = 0.0, 1.0, 0
         while True:
-            s2, r, terminated, truncated = env_step(
-                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
-            )
+            if env is None:  # compiled path: one outcome of row s * A + a of the model
+                o = sample_next(indptr, probs, s * n_actions + a, rng)
+                s2, r, terminated, truncated = (
+                    next_states[o],
+                    rewards[o],
+                    terminal[next_states[o]],
+                    False,
+                )
+            else:  # general path: the Gymnasium env (what env_step does, written out for speed)
+                s2, r, terminated, truncated = env.step(a)
             t += 1
             g += disc * r
             disc *= gamma
@@ -391,15 +315,11 @@ def one_step_control_kernel(
             if rule == 0:
                 q_next = 0.0
                 if not terminated:
-                    if rule == 3:
-                        _sum_rows(q1, q2, s2, qsum)
-                    a2 = epsilon_greedy_action(
-                        qsum if rule == 3 else q1[s2], mask[s2], epsilon, rng
-                    )
+                    a2 = epsilon_greedy_action(q1[s2], mask[s2], epsilon, rng)
                     q_next = q1[s2, a2]
                 q1[s, a] = td_update(q1[s, a], alpha, sarsa_target(r, gamma, q_next, terminated))
             elif rule == 1:
-                target = q_learning_target(r, gamma, q1[s2], mask[s2], terminated)
+                target = q_learning_target(r, gamma, q1, mask, s2, terminated)
                 q1[s, a] = td_update(q1[s, a], alpha, target)
             elif rule == 2:
                 target = expected_sarsa_target(r, gamma, q1[s2], mask[s2], epsilon, terminated)
@@ -411,12 +331,11 @@ def one_step_control_kernel(
                 else:
                     target = double_q_target(r, gamma, q2[s2], q1[s2], mask[s2], terminated)
                     q2[s, a] = td_update(q2[s, a], alpha, target)
+                qb[s, a] = q1[s, a] + q2[s, a]
             if terminated or truncated or t >= max_steps:
                 break
             if rule != 0:
-                if rule == 3:
-                    _sum_rows(q1, q2, s2, qsum)
-                a2 = epsilon_greedy_action(qsum if rule == 3 else q1[s2], mask[s2], epsilon, rng)
+                a2 = epsilon_greedy_action(qb[s2], mask[s2], epsilon, rng)
             s, a = s2, a2
         returns[k] = g
         lengths[k] = t
@@ -649,7 +568,7 @@ def dyna_q_kernel(
             counts[s, a] += 1
             alpha = schedule_value(alpha_params, float(counts[s, a]))
             q[s, a] = td_update(
-                q[s, a], alpha, q_learning_target(r, gamma, q[s2], mask[s2], terminated)
+                q[s, a], alpha, q_learning_target(r, gamma, q, mask, s2, terminated)
             )
             if model_next[s, a] == -1:
                 seen[0] += 1
@@ -663,7 +582,7 @@ def dyna_q_kernel(
                 p_term = pn <= -2
                 if p_term:
                     pn = -2 - pn
-                target = q_learning_target(model_reward[ps, pa], gamma, q[pn], mask[pn], p_term)
+                target = q_learning_target(model_reward[ps, pa], gamma, q, mask, pn, p_term)
                 counts[ps, pa] += 1
                 p_alpha = schedule_value(alpha_params, float(counts[ps, pa]))
                 q[ps, pa] = td_update(q[ps, pa], p_alpha, target)

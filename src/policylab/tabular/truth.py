@@ -14,6 +14,8 @@ the exact policy-improvement step (greedy in q_pi).
 
 from __future__ import annotations
 
+import weakref
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
@@ -44,6 +46,24 @@ def greedy_probs(q: NDArray[np.float64], mask: NDArray[np.bool_]) -> NDArray[np.
     return out
 
 
+#: Exact answers already computed, per MDP object (FiniteMDPs are immutable): many runs
+#: of one study (``run_seeds``, ``seed_study``) share one solve. Entries go with the MDP.
+_SOLVED: weakref.WeakKeyDictionary[FiniteMDP, dict[Hashable, GroundTruth]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _cached(mdp: FiniteMDP, key: Hashable, solve: Callable[[], GroundTruth]) -> GroundTruth:
+    """``solve()`` once per (MDP object, key)."""
+    try:
+        table = _SOLVED.setdefault(mdp, {})
+    except TypeError:  # an unhashable subclass: solve every time
+        return solve()
+    if key not in table:
+        table[key] = solve()
+    return table[key]
+
+
 @dataclass(frozen=True)
 class GroundTruth:
     """The exact values a learner is scored against.
@@ -69,29 +89,42 @@ class GroundTruth:
     def prediction(
         cls, mdp: FiniteMDP, policy: Policy, on: Literal["v", "q"] = "q", gamma: float | None = None
     ) -> GroundTruth:
-        """v_pi and q_pi of a policy, exact (a linear solve in ``policylab.planning``)."""
+        """v_pi and q_pi of a policy, exact (a linear solve in ``policylab.planning``).
+
+        Solved once per MDP object, policy, ``on`` and ``gamma`` (then reused).
+        """
         from policylab.planning import action_values, evaluate_policy
 
-        m = mdp if gamma is None else mdp.with_gamma(gamma)
-        v = np.asarray(evaluate_policy(m, policy), dtype=np.float64)
-        q = np.asarray(action_values(m, v), dtype=np.float64)
-        return cls._make(m, "v_pi" if _on(on) == "v" else "q_pi", v, q)
+        def solve() -> GroundTruth:
+            m = mdp if gamma is None else mdp.with_gamma(gamma)
+            v = np.asarray(evaluate_policy(m, policy), dtype=np.float64)
+            q = np.asarray(action_values(m, v), dtype=np.float64)
+            return cls._make(m, "v_pi" if _on(on) == "v" else "q_pi", v, q)
+
+        probs = np.ascontiguousarray(policy.probs, dtype=np.float64)
+        return _cached(mdp, ("prediction", on, gamma, probs.shape, probs.tobytes()), solve)
 
     @classmethod
     def control(
         cls, mdp: FiniteMDP, on: Literal["v", "q"] = "q", gamma: float | None = None
     ) -> GroundTruth:
-        """v* and q*, exact (value iteration to 1e-10 in ``policylab.planning``)."""
+        """v* and q*, exact (value iteration to 1e-10 in ``policylab.planning``).
+
+        Solved once per MDP object, ``on`` and ``gamma`` (then reused).
+        """
         from policylab.planning import value_iteration
 
-        m = mdp if gamma is None else mdp.with_gamma(gamma)
-        res = value_iteration(m, tol=1e-10)
-        return cls._make(
-            m,
-            "v*" if _on(on) == "v" else "q*",
-            np.asarray(res.v, dtype=np.float64),
-            np.asarray(res.q, dtype=np.float64),
-        )
+        def solve() -> GroundTruth:
+            m = mdp if gamma is None else mdp.with_gamma(gamma)
+            res = value_iteration(m, tol=1e-10)
+            return cls._make(
+                m,
+                "v*" if _on(on) == "v" else "q*",
+                np.asarray(res.v, dtype=np.float64),
+                np.asarray(res.q, dtype=np.float64),
+            )
+
+        return _cached(mdp, ("control", on, gamma), solve)
 
     @classmethod
     def _make(

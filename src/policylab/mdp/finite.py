@@ -694,9 +694,11 @@ class FiniteMDP:
             init_arr = np.asarray(init_d, dtype=np.float64)
             initial = {s: float(init_arr[s]) for s in order if init_arr[s] > 0}
         ordered = {s: dynamics[s] for s in order}
+        from policylab.mdp.gym_grid import gym_grid_layout
+
         return cls.from_dynamics(
             ordered, gamma=gamma, terminal=sorted(terminal_set), actions=list(range(A)),
-            initial=initial, name=name or str(env_id),
+            initial=initial, name=name or str(env_id), grid=gym_grid_layout(base, S, A),
         )
 
 

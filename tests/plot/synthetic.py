@@ -65,9 +65,12 @@ def gambler(goal: int = 100, p_heads: float = 0.4) -> pl.FiniteMDP:
     dyn[0], dyn[goal] = {}, {}
     order = {s: dyn[s] for s in range(goal + 1)}
     return pl.FiniteMDP.from_dynamics(
-        order, gamma=1.0, terminal=[0, goal], actions=list(range(1, goal // 2 + 1)),
-        name="gambler", meta={"x": list(range(goal + 1)), "xlabel": "capital",
-                              "action_label": "stake"},
+        order,
+        gamma=1.0,
+        terminal=[0, goal],
+        actions=list(range(1, goal // 2 + 1)),
+        name="gambler",
+        meta={"x": list(range(goal + 1)), "xlabel": "capital", "action_label": "stake"},
     )
 
 
@@ -79,8 +82,12 @@ def random_walk(n: int = 5) -> pl.FiniteMDP:
         left, right = states[i - 1], states[i + 1]
         dyn[states[i]] = {"walk": [(0.5, left, 0.0), (0.5, right, 1.0 if right == "R" else 0.0)]}
     return pl.FiniteMDP.from_dynamics(
-        {s: dyn[s] for s in states}, gamma=1.0, terminal=["L", "R"], initial="C",
-        name="random-walk", meta={"x": list(range(n + 2)), "xlabel": "state (A..E)"},
+        {s: dyn[s] for s in states},
+        gamma=1.0,
+        terminal=["L", "R"],
+        initial="C",
+        name="random-walk",
+        meta={"x": list(range(n + 2)), "xlabel": "state (A..E)"},
     )
 
 
@@ -103,10 +110,15 @@ def car_rental(n: int = 6, max_move: int = 2) -> pl.FiniteMDP:
     cells = tuple((i, j) for i in range(n) for j in range(n))
     layout = GridLayout(shape=(n, n), cells=cells, moves=())
     return pl.FiniteMDP.from_dynamics(
-        dyn, gamma=0.9, actions=list(range(-max_move, max_move + 1)), grid=layout,
-        name="car-rental", meta={"axis_labels": ("cars at the first location",
-                                                 "cars at the second location"),
-                                 "action_label": "cars moved from first to second"},
+        dyn,
+        gamma=0.9,
+        actions=list(range(-max_move, max_move + 1)),
+        grid=layout,
+        name="car-rental",
+        meta={
+            "axis_labels": ("cars at the first location", "cars at the second location"),
+            "action_label": "cars moved from first to second",
+        },
     )
 
 
@@ -132,10 +144,17 @@ def blackjack_like() -> pl.FiniteMDP:
                 merged: dict = {}
                 for pr, nxt, r in hit:
                     merged[(nxt, r)] = merged.get((nxt, r), 0.0) + pr
-                dyn[(p, d, ace)] = {"stick": stick, "hit": [(pr, n, r) for (n, r), pr in merged.items()]}
+                dyn[(p, d, ace)] = {
+                    "stick": stick,
+                    "hit": [(pr, n, r) for (n, r), pr in merged.items()],
+                }
     dyn["end"] = {}
     return pl.FiniteMDP.from_dynamics(
-        dyn, gamma=1.0, terminal=["end"], actions=["stick", "hit"], name="blackjack-like",
+        dyn,
+        gamma=1.0,
+        terminal=["end"],
+        actions=["stick", "hit"],
+        name="blackjack-like",
         meta={"blackjack": True},
     )
 

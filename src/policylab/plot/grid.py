@@ -33,10 +33,10 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
-    from numpy.typing import ArrayLike, NDArray
+    from numpy.typing import ArrayLike
 
     from policylab.mdp.finite import FiniteMDP
-    from policylab.mdp.grid import Cell, GridLayout
+    from policylab.mdp.grid import GridLayout
     from policylab.mdp.policy import Policy
 
 __all__ = [
@@ -107,42 +107,88 @@ def _base_grid(ax: Axes, mdp: FiniteMDP, grid: GridLayout, *, label_states: bool
                 ax.add_patch(Rectangle((c - 0.5, r - 0.5), 1, 1, color=BLOCKED, zorder=1.5))
                 kind = grid.kinds.get((r, c), "")
                 if kind and cols <= 16:
-                    ax.text(c, r, kind, ha="center", va="center", color="white", fontsize=7,
-                            zorder=5)
+                    ax.text(
+                        c, r, kind, ha="center", va="center", color="white", fontsize=7, zorder=5
+                    )
     plain = _plain_kind(grid)
     small = 6 if cols > 8 else 7
+    label_states = label_states and rows * cols <= 30
     for s, (r, c) in enumerate(grid.cells):
         kind = grid.kinds.get((r, c), "")
         if kind in HAZARD_KINDS:
-            ax.add_patch(Rectangle((c - 0.5, r - 0.5), 1, 1, fill=False, hatch="///",
-                                   edgecolor="0.35", lw=0, zorder=1.6))
+            ax.add_patch(
+                Rectangle(
+                    (c - 0.5, r - 0.5),
+                    1,
+                    1,
+                    fill=False,
+                    hatch="///",
+                    edgecolor="0.35",
+                    lw=0,
+                    zorder=1.6,
+                )
+            )
         if kind and kind != plain:
-            ax.text(c - 0.45, r - 0.45, kind, ha="left", va="top", fontsize=small, zorder=6,
-                    bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
-                          "alpha": 0.75})
+            ax.text(
+                c - 0.45,
+                r - 0.45,
+                kind,
+                ha="left",
+                va="top",
+                fontsize=small,
+                zorder=6,
+                bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.75},
+            )
         if mdp.terminal[s]:
-            ax.add_patch(Rectangle((c - 0.46, r - 0.46), 0.92, 0.92, fill=False, ec="black",
-                                   lw=2.0, zorder=4))
+            ax.add_patch(
+                Rectangle(
+                    (c - 0.46, r - 0.46), 0.92, 0.92, fill=False, ec="black", lw=2.0, zorder=4
+                )
+            )
         lab = mdp.states[s]
         if label_states and lab != (r, c):
-            ax.text(c + 0.45, r + 0.45, f"s={lab}", ha="right", va="bottom", fontsize=small,
-                    color="0.2", zorder=6,
-                    bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
-                          "alpha": 0.75})
+            ax.text(
+                c + 0.45,
+                r + 0.45,
+                f"s={lab}",
+                ha="right",
+                va="bottom",
+                fontsize=small,
+                color="0.2",
+                zorder=6,
+                bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.75},
+            )
     for wall in grid.thin_walls:
         a, b = sorted(wall)
         if a[0] == b[0]:  # side by side: a vertical wall
             x = max(a[1], b[1]) - 0.5
-            ax.plot([x, x], [a[0] - 0.5, a[0] + 0.5], color="black", lw=5, zorder=7,
-                    solid_capstyle="butt")
+            ax.plot(
+                [x, x],
+                [a[0] - 0.5, a[0] + 0.5],
+                color="black",
+                lw=5,
+                zorder=7,
+                solid_capstyle="butt",
+            )
         else:  # one above the other: a horizontal wall
             y = max(a[0], b[0]) - 0.5
-            ax.plot([a[1] - 0.5, a[1] + 0.5], [y, y], color="black", lw=5, zorder=7,
-                    solid_capstyle="butt")
+            ax.plot(
+                [a[1] - 0.5, a[1] + 0.5],
+                [y, y],
+                color="black",
+                lw=5,
+                zorder=7,
+                solid_capstyle="butt",
+            )
 
 
 def draw_grid_values(
-    ax: Axes, mdp: FiniteMDP, v: ArrayLike, *, norm: Normalize | None = None, cmap: str | None = None
+    ax: Axes,
+    mdp: FiniteMDP,
+    v: ArrayLike,
+    *,
+    norm: Normalize | None = None,
+    cmap: str | None = None,
 ) -> None:
     """Draw per-state values as a heatmap on the grid, with the number in each cell.
 
@@ -166,12 +212,21 @@ def draw_grid_values(
     ax.imshow(np.ma.masked_invalid(arr), cmap=cm, norm=norm, zorder=1, interpolation="nearest")
     _base_grid(ax, mdp, grid)
     form = number_format(vals)
-    rows, cols = grid.shape
+    cols = grid.shape[1]
     size = 11 if cols <= 6 else (9 if cols <= 10 else 7)
     for s, (r, c) in enumerate(grid.cells):
         x = vals[s]
-        ax.text(c, r, fmt(form, x), ha="center", va="center", fontsize=size, zorder=5,
-                color=cell_text_color(cm, norm, x), fontweight="bold")
+        ax.text(
+            c,
+            r,
+            fmt(form, x),
+            ha="center",
+            va="center",
+            fontsize=size,
+            zorder=5,
+            color=cell_text_color(cm, norm, x),
+            fontweight="bold",
+        )
 
 
 def draw_grid_policy(ax: Axes, mdp: FiniteMDP, policy: Policy | ArrayLike) -> None:
@@ -205,12 +260,29 @@ def draw_grid_policy(ax: Axes, mdp: FiniteMDP, policy: Policy | ArrayLike) -> No
             else:  # one arrow per action, out of the centre, as long as it is likely
                 length, x0, y0 = 0.1 + 0.32 * p, c + 0.04 * ux, r + 0.04 * uy
             head = min(0.13, 0.45 * length)
-            ax.arrow(x0, y0, ux * length, uy * length, width=0.02 + 0.02 * p,
-                     head_width=2.4 * head, head_length=head, length_includes_head=True,
-                     color="tab:blue", zorder=8)
+            ax.arrow(
+                x0,
+                y0,
+                ux * length,
+                uy * length,
+                width=0.02 + 0.02 * p,
+                head_width=2.4 * head,
+                head_length=head,
+                length_includes_head=True,
+                color="tab:blue",
+                zorder=8,
+            )
             if write_p:
-                ax.text(x0 + ux * (length + 0.05), y0 + uy * (length + 0.05), f"{p:.2g}",
-                        ha="center", va="center", fontsize=6, color="0.15", zorder=9)
+                ax.text(
+                    x0 + ux * (length + 0.05),
+                    y0 + uy * (length + 0.05),
+                    f"{p:.2g}",
+                    ha="center",
+                    va="center",
+                    fontsize=6,
+                    color="0.15",
+                    zorder=9,
+                )
 
 
 def _grid_cells_only(mdp: FiniteMDP, figure: str) -> GridLayout:
@@ -229,7 +301,7 @@ def q_triangles(grid: GridLayout, mdp: FiniteMDP) -> list[str]:
     Raises:
         InvalidArgumentError: If the actions are not the four compass moves, one each.
     """
-    dirs = [_COMPASS.get(tuple(m)) for m in grid.moves]  # type: ignore[call-overload]
+    dirs = [_COMPASS.get((int(m[0]), int(m[1]))) for m in grid.moves]
     if None in dirs or len(set(dirs)) != len(dirs):
         raise InvalidArgumentError(
             f"the Q-table view draws one triangle per compass move (up, down, left, right); "
@@ -238,7 +310,9 @@ def q_triangles(grid: GridLayout, mdp: FiniteMDP) -> list[str]:
     return [d for d in dirs if d is not None]
 
 
-def _triangle(direction: str, c: float, r: float) -> tuple[list[tuple[float, float]], tuple[float, float]]:
+def _triangle(
+    direction: str, c: float, r: float
+) -> tuple[list[tuple[float, float]], tuple[float, float]]:
     """Vertices of the triangle of one direction in cell (r, c), and where its text goes."""
     tl, tr, bl, br = (c - 0.5, r - 0.5), (c + 0.5, r - 0.5), (c - 0.5, r + 0.5), (c + 0.5, r + 0.5)
     centre = (c, r)
@@ -252,7 +326,12 @@ def _triangle(direction: str, c: float, r: float) -> tuple[list[tuple[float, flo
 
 
 def draw_q_table(
-    ax: Axes, mdp: FiniteMDP, q: ArrayLike, *, norm: Normalize | None = None, cmap: str | None = None
+    ax: Axes,
+    mdp: FiniteMDP,
+    q: ArrayLike,
+    *,
+    norm: Normalize | None = None,
+    cmap: str | None = None,
 ) -> None:
     """Draw action values q(s, a) as four triangles per cell (the notes' figure 9).
 
@@ -296,16 +375,23 @@ def draw_q_table(
     cols = grid.shape[1]
     size = 8 if cols <= 5 else 6
     for tx, ty, text, colour, greedy in texts:
-        ax.text(tx, ty, text, ha="center", va="center", fontsize=size, color=colour, zorder=5,
-                fontweight="bold" if greedy else "normal")
+        ax.text(
+            tx,
+            ty,
+            text,
+            ha="center",
+            va="center",
+            fontsize=size,
+            color=colour,
+            zorder=5,
+            fontweight="bold" if greedy else "normal",
+        )
 
 
 def _cmap(name: str):  # type: ignore[no-untyped-def]
     import matplotlib
 
-    cm = matplotlib.colormaps[name].copy()
-    cm.set_bad("white")
-    return cm
+    return matplotlib.colormaps[name].with_extremes(bad="white")
 
 
 def _colorbar(fig: Figure, ax: Axes | list[Axes], norm: Normalize, cmap: str, label: str) -> None:
@@ -315,9 +401,15 @@ def _colorbar(fig: Figure, ax: Axes | list[Axes], norm: Normalize, cmap: str, la
     fig.colorbar(sm, ax=ax, shrink=0.8, label=label)
 
 
+def _wide(grid: GridLayout) -> bool:
+    """Whether a grid is so wide that its panels go one above the other."""
+    rows, cols = grid.shape
+    return cols >= 2 * rows and cols > 6
+
+
 def _panel_size(grid: GridLayout) -> tuple[float, float]:
     rows, cols = grid.shape
-    unit = 1.2 if cols <= 6 else (0.75 if cols <= 12 else 0.5)
+    unit = 1.2 if cols <= 6 else (0.8 if cols <= 12 else 0.5)
     return max(3.6, unit * cols), max(2.6, unit * rows)
 
 
@@ -342,8 +434,12 @@ def gridworld_figure(
     if not panels:
         raise InvalidArgumentError("gridworld_figure needs at least one of v, policy or q to draw")
     w, h = _panel_size(grid)
-    fig = new_figure(w * len(panels) + 1.2 * (v is not None) + 1.2 * (q is not None), h + 0.9)
-    axes = fig.subplots(1, len(panels), squeeze=False)[0]
+    if _wide(grid):  # panels one above the other
+        fig = new_figure(w + 1.4, (h + 0.6) * len(panels) + 0.4)
+        axes = fig.subplots(len(panels), 1, squeeze=False)[:, 0]
+    else:
+        fig = new_figure(w * len(panels) + 1.2 * (v is not None) + 1.2 * (q is not None), h + 0.9)
+        axes = fig.subplots(1, len(panels), squeeze=False)[0]
     i = 0
     if v is not None:
         vals = check_values(mdp, v)
@@ -394,8 +490,12 @@ def q_table_figure(
     shown = np.concatenate([np.where(mdp.action_mask, x, np.nan) for x in arrays])
     norm, cmap = value_norm(shown)
     w, h = _panel_size(grid)
-    fig = new_figure(w * len(arrays) + 1.2, h + 0.9)
-    axes = list(fig.subplots(1, len(arrays), squeeze=False)[0])
+    if _wide(grid):
+        fig = new_figure(w + 1.4, (h + 0.6) * len(arrays) + 0.6)
+        axes = list(fig.subplots(len(arrays), 1, squeeze=False)[:, 0])
+    else:
+        fig = new_figure(w * len(arrays) + 1.2, h + 0.9)
+        axes = list(fig.subplots(1, len(arrays), squeeze=False)[0])
     for ax, arr, lab in zip(axes, arrays, labels, strict=False):
         draw_q_table(ax, mdp, arr, norm=norm, cmap=cmap)
         ax.set_title(f"q(s, a): {lab}")
@@ -412,15 +512,3 @@ def q_table_figure(
             )
     fig.suptitle(title_of(mdp, "Q-table (bold: greedy action)", title))
     return fig
-
-
-def grid_cell_values(mdp: FiniteMDP, v: ArrayLike) -> NDArray[np.float64]:
-    """Per-state values laid out on the grid (NaN where no state is)."""
-    grid = _grid_cells_only(mdp, "grid_cell_values")
-    return grid.to_array(check_values(mdp, v))
-
-
-def cell_of(mdp: FiniteMDP, state: object) -> Cell:
-    """The cell of a state label."""
-    grid = _grid_cells_only(mdp, "cell_of")
-    return grid.cells[mdp.state_index(state)]

@@ -46,6 +46,14 @@ _ERROR_FIELDS = (
 )
 
 
+#: Also looked up inside a nested ``error`` object or mapping.
+_ERROR_FIELDS_NESTED = (
+    *_ERROR_FIELDS,
+    ("rms", "RMS error vs the exact answer"),
+    ("max", "max error vs the exact answer"),
+)
+
+
 @dataclass(frozen=True)
 class LearningCurves:
     """The curves of one learning run.
@@ -73,7 +81,9 @@ def _array(x: Any, what: str) -> NDArray[np.float64]:
     try:
         arr = np.asarray(x, dtype=np.float64)
     except (TypeError, ValueError):
-        raise InvalidArgumentError(f"{what} must be an array of numbers; got {type(x).__name__}") from None
+        raise InvalidArgumentError(
+            f"{what} must be an array of numbers; got {type(x).__name__}"
+        ) from None
     if arr.ndim != 1:
         raise InvalidArgumentError(f"{what} must be one-dimensional; got shape {arr.shape}")
     return arr
@@ -106,8 +116,7 @@ def learning_curves(result: Any) -> LearningCurves:
             holders.append(nested)
     if error is None:
         for holder in holders:
-            for name, lab in _ERROR_FIELDS + (("rms", "RMS error vs the exact answer"),
-                                              ("max", "max error vs the exact answer")):
+            for name, lab in _ERROR_FIELDS_NESTED:
                 val = _field(holder, name)
                 if val is not None and np.ndim(val) == 1:
                     error, label = _array(val, name), lab
@@ -124,7 +133,9 @@ def learning_curves(result: Any) -> LearningCurves:
             checkpoints = _array(cp, "checkpoints")
         else:
             total = len(returns) if returns is not None else len(error)
-            checkpoints = np.linspace(total / len(error), total, len(error)) if len(error) else error
+            checkpoints = (
+                np.linspace(total / len(error), total, len(error)) if len(error) else error
+            )
         if checkpoints.shape != error.shape:
             raise InvalidArgumentError(
                 f"the error curve has {len(error)} points but {len(checkpoints)} checkpoints"
@@ -283,32 +294,52 @@ def learning_figure(
             label = with_err[0].error_label
             ys = _stack([c.error for c in with_err])  # type: ignore[misc]
             xs = with_err[0].checkpoints[: ys.shape[1]]  # type: ignore[index]
-            draw_mean_with_band(ax, xs, ys, label=f"{lab} (n={len(with_err)})" if n_seeds > 1
-                                else lab, color=f"C{k}", confidence=confidence, seed=k)
+            draw_mean_with_band(
+                ax,
+                xs,
+                ys,
+                label=f"{lab} (n={len(with_err)})" if n_seeds > 1 else lab,
+                color=f"C{k}",
+                confidence=confidence,
+                seed=k,
+            )
         ax.set_xlabel("episodes")
         ax.set_ylabel(label)
-        ax.set_title("error against the exact answer" + (f"\n({band})" if band else ""),
-                     fontsize=10)
+        ax.set_title(
+            "error against the exact answer" + (f"\n({band})" if band else ""), fontsize=10
+        )
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, frameon=False)
         i += 1
     if has_ret:
         ax = axes[i]
-        lengths = [len(c.episode_returns) for runs in groups.values() for c in runs
-                   if c.episode_returns is not None]
+        lengths = [
+            len(c.episode_returns)
+            for runs in groups.values()
+            for c in runs
+            if c.episode_returns is not None
+        ]
         window = smooth if smooth is not None else max(1, min(lengths) // 50)
         for k, (lab, runs) in enumerate(groups.items()):
             rets = [c.episode_returns for c in runs if c.episode_returns is not None]
             if not rets:
                 continue
-            ys = moving_average(_stack(rets), window)  # type: ignore[arg-type]
+            ys = moving_average(_stack(rets), window)
             xs = np.arange(1, ys.shape[1] + 1)
-            draw_mean_with_band(ax, xs, ys, label=f"{lab} (n={len(rets)})" if n_seeds > 1
-                                else lab, color=f"C{k}", confidence=confidence, seed=k)
+            draw_mean_with_band(
+                ax,
+                xs,
+                ys,
+                label=f"{lab} (n={len(rets)})" if n_seeds > 1 else lab,
+                color=f"C{k}",
+                confidence=confidence,
+                seed=k,
+            )
         ax.set_xlabel("episode")
-        ax.set_ylabel("return per episode" + (f" (moving average of {window})" if window > 1
-                                              else ""))
+        ax.set_ylabel(
+            "return per episode" + (f" (moving average of {window})" if window > 1 else "")
+        )
         ax.set_title("return per episode" + (f"\n({band})" if band else ""), fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, frameon=False)

@@ -13,7 +13,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Sequence
+from collections.abc import Hashable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -61,9 +61,7 @@ MAX_TABLE_ACTIONS = 12
 def _cmap(name: str):  # type: ignore[no-untyped-def]
     import matplotlib
 
-    cm = matplotlib.colormaps[name].copy()
-    cm.set_bad(BLOCKED)
-    return cm
+    return matplotlib.colormaps[name].with_extremes(bad=BLOCKED)
 
 
 # ---------------------------------------------------------------------- small problems
@@ -96,9 +94,7 @@ def draw_value_bars(ax: Axes, mdp: FiniteMDP, v: ArrayLike, *, label: str = "v(s
     ax.margins(y=0.15)
 
 
-def draw_policy_table(
-    ax: Axes, mdp: FiniteMDP, table: ArrayLike, *, kind: str = "policy"
-) -> None:
+def draw_policy_table(ax: Axes, mdp: FiniteMDP, table: ArrayLike, *, kind: str = "policy") -> None:
     """An (S, A) table as an image with its numbers: pi(a|s) (``kind="policy"``) or q(s, a).
 
     Unavailable actions and rows of terminal states are dark and show "—".
@@ -123,8 +119,15 @@ def draw_policy_table(
         for a in range(A):
             x = shown[s, a]
             text = fmt(form, x) if np.isfinite(x) else "—"
-            ax.text(a, s, text, ha="center", va="center", fontsize=9,
-                    color=cell_text_color(cm, norm, x) if np.isfinite(x) else "white")
+            ax.text(
+                a,
+                s,
+                text,
+                ha="center",
+                va="center",
+                fontsize=9,
+                color=cell_text_color(cm, norm, x) if np.isfinite(x) else "white",
+            )
     ax.set_xticks(range(A), [str(a) for a in mdp.actions], fontsize=8)
     ax.set_yticks(range(S), [str(s) for s in mdp.states], fontsize=8)
     ax.set_xlabel("action a")
@@ -186,8 +189,7 @@ def _abscissa(mdp: FiniteMDP) -> NDArray[np.float64]:
     x = mdp.meta.get("x")
     if x is None:
         raise InvalidArgumentError(
-            f"a line figure needs the abscissa of each state (mdp.meta['x']); {mdp.name!r} "
-            "has none"
+            f"a line figure needs the abscissa of each state (mdp.meta['x']); {mdp.name!r} has none"
         )
     try:
         arr = np.asarray(x, dtype=np.float64)
@@ -250,12 +252,20 @@ def line_figure(
         ax = axes[i]
         for lab, arr in (extra_values or {}).items():
             vals = check_values(mdp, arr, lab)[live][order]
-            ax.plot(xs, vals, marker="o" if len(xs) <= 30 else None, ms=3, lw=1.2, label=lab,
-                    alpha=0.85)
+            ax.plot(
+                xs, vals, marker="o" if len(xs) <= 30 else None, ms=3, lw=1.2, label=lab, alpha=0.85
+            )
         if v is not None:
             vals = check_values(mdp, v)[live][order]
-            ax.plot(xs, vals, color="black", lw=1.8, marker="o" if len(xs) <= 30 else None,
-                    ms=4, label=value_label if extra_values else None)
+            ax.plot(
+                xs,
+                vals,
+                color="black",
+                lw=1.8,
+                marker="o" if len(xs) <= 30 else None,
+                ms=4,
+                label=value_label if extra_values else None,
+            )
         if extra_values:
             ax.legend(fontsize=8, frameon=False)
         ax.set_ylabel(value_label)
@@ -280,15 +290,25 @@ def line_figure(
                 ax.set_title(f"policy: {action_label} (dot area ∝ probability)")
             ax.set_ylabel(action_label)
         else:
-            for a, lab in enumerate(mdp.actions):
-                ax.plot(xs, probs[:, a], marker="o" if len(xs) <= 30 else None, ms=3,
-                        label=f"π({lab}|s)")
+            for a, act in enumerate(mdp.actions):
+                ax.plot(
+                    xs,
+                    probs[:, a],
+                    marker="o" if len(xs) <= 30 else None,
+                    ms=3,
+                    label=f"π({act}|s)",
+                )
             ax.set_ylim(-0.05, 1.05)
             ax.set_ylabel("probability")
             ax.legend(fontsize=8, frameon=False)
             ax.set_title("policy π(a|s)")
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel(xlabel)
+    labels = [mdp.states[s] for s in np.flatnonzero(live)[order]]
+    if len(xs) <= 20:  # few states: name each one on the axis
+        names = [str(lab) for lab in labels]
+        same = all(_same_number(lab, x) for lab, x in zip(labels, xs, strict=True))
+        axes[-1].set_xticks(xs, [fmt("{:g}", x) for x in xs] if same else names)
     fig.suptitle(title_of(mdp, "Solution", title))
     return fig
 
@@ -341,32 +361,57 @@ def policy_map_figure(
             levels = np.arange(np.floor(-top) - 0.5, np.ceil(top) + 1.0, 1.0)
             cm = _cmap("RdBu")
             norm = BoundaryNorm(levels, cm.N)
-            im = ax.imshow(np.ma.masked_invalid(val), cmap=cm, norm=norm, origin="lower",
-                           interpolation="nearest")
+            im = ax.imshow(
+                np.ma.masked_invalid(val),
+                cmap=cm,
+                norm=norm,
+                origin="lower",
+                interpolation="nearest",
+            )
             step = max(1, int(np.ceil(len(levels) / 12)))
             ticks = np.arange(np.floor(-top), np.ceil(top) + 1, step)
-            fig.colorbar(im, ax=ax, shrink=0.85, ticks=ticks,
-                         label=str(mdp.meta.get("action_label", "action")))
+            fig.colorbar(
+                im,
+                ax=ax,
+                shrink=0.85,
+                ticks=ticks,
+                label=str(mdp.meta.get("action_label", "action")),
+            )
             if rows * cols <= 625:
                 form = number_format(used)
                 for r in range(rows):
                     for c in range(cols):
                         if np.isfinite(val[r, c]):
-                            ax.text(c, r, fmt(form, val[r, c]), ha="center", va="center",
-                                    fontsize=5 if cols > 12 else 7,
-                                    color=cell_text_color(cm, norm, val[r, c]))
+                            ax.text(
+                                c,
+                                r,
+                                fmt(form, val[r, c]),
+                                ha="center",
+                                va="center",
+                                fontsize=5 if cols > 12 else 7,
+                                color=cell_text_color(cm, norm, val[r, c]),
+                            )
         else:
             A = mdp.n_actions
             palette = [_cmap("tab10")(k % 10) for k in range(A)]
-            cm = ListedColormap(palette)
-            cm.set_bad(BLOCKED)
-            ax.imshow(np.ma.masked_invalid(idx_grid), cmap=cm, vmin=-0.5, vmax=A - 0.5,
-                      origin="lower", interpolation="nearest")
+            cm = ListedColormap(palette).with_extremes(bad=BLOCKED)
+            ax.imshow(
+                np.ma.masked_invalid(idx_grid),
+                cmap=cm,
+                vmin=-0.5,
+                vmax=A - 0.5,
+                origin="lower",
+                interpolation="nearest",
+            )
             from matplotlib.patches import Patch
 
-            ax.legend(handles=[Patch(color=palette[k], label=str(a))
-                               for k, a in enumerate(mdp.actions)],
-                      loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, title="action")
+            ax.legend(
+                handles=[Patch(color=palette[k], label=str(a)) for k, a in enumerate(mdp.actions)],
+                loc="upper left",
+                bbox_to_anchor=(1.01, 1.0),
+                fontsize=8,
+                title="action",
+            )
         ax.set_title("policy π(s)")
         ax.set_xlabel(xlab)
         ax.set_ylabel(ylab)
@@ -375,8 +420,13 @@ def policy_map_figure(
         ax = axes[i]
         vals = check_values(mdp, v)
         norm_v, cmap_v = value_norm(vals[~mdp.terminal])
-        im = ax.imshow(np.ma.masked_invalid(grid.to_array(vals)), cmap=_cmap(cmap_v), norm=norm_v,
-                       origin="lower", interpolation="nearest")
+        im = ax.imshow(
+            np.ma.masked_invalid(grid.to_array(vals)),
+            cmap=_cmap(cmap_v),
+            norm=norm_v,
+            origin="lower",
+            interpolation="nearest",
+        )
         fig.colorbar(im, ax=ax, shrink=0.85, label=value_label)
         ax.set_title(f"state values {value_label}")
         ax.set_xlabel(xlab)
@@ -454,6 +504,9 @@ def blackjack_figure(
     probs = policy_probs(mdp, policy) if policy is not None else None
     norm_v, cmap_v = value_norm(vals[[s for s, *_ in info]]) if vals is not None else (None, "")
     A = mdp.n_actions
+    short = [str(a)[:1].upper() for a in mdp.actions]
+    if len(set(short)) < A:
+        short = [str(a) for a in mdp.actions]
     palette = ["#f4a582", "#92c5de", "#b2df8a", "#cab2d6", "#fdbf6f"]
     for row, ace in enumerate((True, False)):
         for col, (_, what) in enumerate(cols):
@@ -468,33 +521,60 @@ def blackjack_figure(
                     img[p_index[p], d_index[d]] = float(np.argmax(probs[s]))  # type: ignore[index]
             if what == "value":
                 cm = _cmap(cmap_v)
-                ax.imshow(np.ma.masked_invalid(img), cmap=cm, norm=norm_v, origin="lower",
-                          aspect="auto", interpolation="nearest")
+                ax.imshow(
+                    np.ma.masked_invalid(img),
+                    cmap=cm,
+                    norm=norm_v,
+                    origin="lower",
+                    aspect="auto",
+                    interpolation="nearest",
+                )
                 for i in range(len(sums)):
                     for j in range(len(dealers)):
                         if np.isfinite(img[i, j]):
-                            ax.text(j, i, f"{img[i, j]:.2f}".replace("0.", ".").replace("-.", "−."),
-                                    ha="center", va="center", fontsize=5.5,
-                                    color=cell_text_color(cm, norm_v, img[i, j]))  # type: ignore[arg-type]
+                            ax.text(
+                                j,
+                                i,
+                                _short_number(float(img[i, j])),
+                                ha="center",
+                                va="center",
+                                fontsize=5.5,
+                                color=cell_text_color(cm, norm_v, img[i, j]),  # type: ignore[arg-type]
+                            )
                 ax.set_title(f"{value_label}, {'usable ace' if ace else 'no usable ace'}")
             else:
-                cm = ListedColormap([palette[k % len(palette)] for k in range(A)])
-                cm.set_bad("white")
-                ax.imshow(np.ma.masked_invalid(img), cmap=cm, vmin=-0.5, vmax=A - 0.5,
-                          origin="lower", aspect="auto", interpolation="nearest")
+                cm = ListedColormap([palette[k % len(palette)] for k in range(A)]).with_extremes(
+                    bad="white"
+                )
+                ax.imshow(
+                    np.ma.masked_invalid(img),
+                    cmap=cm,
+                    vmin=-0.5,
+                    vmax=A - 0.5,
+                    origin="lower",
+                    aspect="auto",
+                    interpolation="nearest",
+                )
                 for i in range(len(sums)):
                     for j in range(len(dealers)):
                         if np.isfinite(img[i, j]):
-                            ax.text(j, i, str(mdp.actions[int(img[i, j])])[:1].upper(),
-                                    ha="center", va="center", fontsize=7)
+                            ax.text(
+                                j, i, short[int(img[i, j])], ha="center", va="center", fontsize=7
+                            )
                 ax.set_title(f"policy π(s), {'usable ace' if ace else 'no usable ace'}")
                 if row == 0:
                     from matplotlib.patches import Patch
 
-                    ax.legend(handles=[Patch(color=palette[k % len(palette)], label=str(a))
-                                       for k, a in enumerate(mdp.actions)],
-                              loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
-                              title="action")
+                    ax.legend(
+                        handles=[
+                            Patch(color=palette[k % len(palette)], label=str(a))
+                            for k, a in enumerate(mdp.actions)
+                        ],
+                        loc="upper left",
+                        bbox_to_anchor=(1.01, 1.0),
+                        fontsize=8,
+                        title="action",
+                    )
             ax.set_xticks(range(len(dealers)), [_dealer_name(d) for d in dealers], fontsize=8)
             ax.set_yticks(range(len(sums)), [str(p) for p in sums], fontsize=7)
             ax.set_xlabel("dealer showing")
@@ -502,16 +582,32 @@ def blackjack_figure(
     if vals is not None:
         from matplotlib.cm import ScalarMappable
 
-        fig.colorbar(ScalarMappable(norm=norm_v, cmap=_cmap(cmap_v)), ax=list(axes[:, 0]),
-                     shrink=0.6, label=value_label)
+        fig.colorbar(
+            ScalarMappable(norm=norm_v, cmap=_cmap(cmap_v)),
+            ax=list(axes[:, 0]),
+            shrink=0.6,
+            label=value_label,
+        )
     fig.suptitle(title_of(mdp, "Blackjack (layout of S&B Figure 5.2)", title))
     return fig
 
 
+def _short_number(x: float) -> str:
+    """Two decimals without the leading zero (".43", "-.12"), as the book's tables."""
+    text = f"{x:.2f}"
+    if text.startswith("0."):
+        return text[1:]
+    if text.startswith("-0."):
+        return "-" + text[2:]
+    return text
+
+
+def _same_number(label: Hashable, x: float) -> bool:
+    try:
+        return float(label) == float(x)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False
+
+
 def _dealer_name(d: int) -> str:
     return "A" if d == 1 else str(d)
-
-
-def states_of(labels: Sequence[Hashable]) -> list[str]:
-    """Labels as written on axes."""
-    return [str(x) for x in labels]

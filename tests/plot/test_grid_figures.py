@@ -136,3 +136,18 @@ def test_q_table_refuses_moves_other_than_the_compass():
     # The solution figure leaves the Q view out rather than failing.
     fig = gridworld_figure(king, np.zeros(4), pl.Policy.uniform(king))
     assert len([a for a in fig.axes if a.get_title()]) == 2
+
+
+def test_episode_figure_shows_the_path_and_the_return(tmp_path):
+    from policylab.plot import episode_figure, interaction_loop_figure
+
+    mdp = pl.problems.mountain_gridworld()
+    ep = pl.rollout(mdp, pl.problems.mountain_gridworld_bad_policy(mdp), seed=0)
+    fig = episode_figure(mdp, ep)
+    table = fig.axes[1].texts[0].get_text()
+    assert "G_0 = -6" in table and "(terminated)" in table
+    labels = {t.get_text() for t in fig.axes[0].texts}
+    assert {str(t) for t in range(1, len(ep) + 1)} <= labels  # every step numbered
+    with pytest.raises(InvalidArgumentError, match="grid-shaped"):
+        episode_figure(pl.problems.recycling_robot(), ep)
+    assert save_figure(interaction_loop_figure(), tmp_path / "loop.png").stat().st_size > 0

@@ -18,7 +18,9 @@ and the figures themselves, each returning a :class:`matplotlib.figure.Figure`:
 - :func:`line_figure`: 1-D problems (``meta["x"]``: gambler, random walk);
 - :func:`policy_map_figure`: 2-D state spaces (car rental, Figure 4.2);
 - :func:`blackjack_figure`: Figure 5.2's layout;
-- :func:`learning_figure`: error and return curves, mean and bootstrap band.
+- :func:`learning_figure`: error and return curves, mean and bootstrap band;
+- :func:`episode_figure`: one episode's path on the grid (notes' figures 7, 8);
+- :func:`interaction_loop_figure`: the agent-environment loop (notes' figure 1).
 """
 
 from __future__ import annotations
@@ -28,10 +30,12 @@ from typing import TYPE_CHECKING, Any
 
 from policylab.exceptions import InvalidArgumentError
 from policylab.plot._common import save_figure
+from policylab.plot.diagrams import interaction_loop_figure
 from policylab.plot.grid import (
     draw_grid_policy,
     draw_grid_values,
     draw_q_table,
+    episode_figure,
     gridworld_figure,
     q_table_figure,
 )
@@ -70,8 +74,10 @@ __all__ = [
     "draw_policy_table",
     "draw_q_table",
     "draw_value_bars",
+    "episode_figure",
     "figure_kind",
     "gridworld_figure",
+    "interaction_loop_figure",
     "learning_curves",
     "learning_figure",
     "line_figure",

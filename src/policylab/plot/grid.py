@@ -16,6 +16,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.patches import Circle, Rectangle
 
 from policylab.exceptions import InvalidArgumentError
+from policylab.mdp.returns import discounted_return
 from policylab.plot._common import (
     BLOCKED,
     cell_text_color,
@@ -35,14 +36,16 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
     from numpy.typing import ArrayLike
 
+    from policylab.envs.rollout import Episode
     from policylab.mdp.finite import FiniteMDP
-    from policylab.mdp.grid import GridLayout
+    from policylab.mdp.grid import Cell, GridLayout
     from policylab.mdp.policy import Policy
 
 __all__ = [
     "draw_grid_policy",
     "draw_grid_values",
     "draw_q_table",
+    "episode_figure",
     "gridworld_figure",
     "q_table_figure",
 ]
@@ -511,4 +514,126 @@ def q_table_figure(
                 fontsize=9,
             )
     fig.suptitle(title_of(mdp, "Q-table (bold: greedy action)", title))
+    return fig
+
+
+def episode_figure(
+    mdp: FiniteMDP,
+    episode: Episode,
+    *,
+    gamma: float | None = None,
+    title: str | None = None,
+    max_rows: int = 24,
+) -> Figure:
+    """One episode drawn on the grid, as the notes' figures 7 and 8 do.
+
+    Each step t is an arrow from the cell of S_t to the cell of S_{t+1}, numbered
+    t + 1; a step that stays put (a bump, or a slip into a wall) is a numbered ring.
+    Beside the grid, the table of S_t, A_t, R_{t+1} and the return G_0.
+
+    Args:
+        mdp: A grid-shaped MDP.
+        episode: An episode of that MDP (see :func:`policylab.rollout`).
+        gamma: Discount rate of the return shown (default: the MDP's).
+        title: Figure title.
+        max_rows: The most steps listed in the table (the path shows them all).
+
+    Raises:
+        InvalidArgumentError: If the MDP has no grid or the episode visits states it
+            does not have.
+    """
+    from matplotlib.patches import FancyArrowPatch
+
+    grid = _grid_cells_only(mdp, "an episode figure")
+    states = np.asarray(episode.states, dtype=np.int64)
+    if states.size == 0 or states.min() < 0 or states.max() >= mdp.n_states:
+        raise InvalidArgumentError(
+            f"the episode visits state indices outside 0..{mdp.n_states - 1} of {mdp.name!r}"
+        )
+    g = mdp.gamma if gamma is None else float(gamma)
+    w, h = _panel_size(grid)
+    n_steps = len(episode.actions)
+    n_lines = min(n_steps, max_rows) + 5 + (n_steps > max_rows)
+    fig = new_figure(w + 3.4, max(h + 0.9, 0.15 * n_lines + 0.8))
+    ax, ax_t = fig.subplots(1, 2, width_ratios=[w, 3.0])
+    ax.imshow(np.full(grid.shape, 0.08), cmap=_cmap("Greys"), vmin=0, vmax=1, zorder=0)
+    _base_grid(ax, mdp, grid)
+    cm = _cmap("viridis")
+    # Steps grouped by (from cell, to cell): one arrow (or ring) per move made, labelled
+    # with its step numbers, or with how often it was made when there are many.
+    moves: dict[tuple[Cell, Cell], list[int]] = {}
+    for t in range(n_steps):
+        moves.setdefault((grid.cells[states[t]], grid.cells[states[t + 1]]), []).append(t + 1)
+    for ((r0, c0), (r1, c1)), steps in moves.items():
+        colour = cm((steps[0] - 1) / max(n_steps - 1, 1))
+        text = ",".join(map(str, steps)) if len(steps) <= 3 else f"{len(steps)}×"
+        lw = 1.5 + min(len(steps), 8) * 0.4
+        if (r0, c0) == (r1, c1):
+            ax.add_patch(Circle((c0, r0 + 0.25), 0.1, fill=False, ec=colour, lw=lw, zorder=9))
+            ax.text(
+                c0,
+                r0 + 0.25,
+                text,
+                ha="center",
+                va="center",
+                fontsize=6,
+                zorder=10,
+                bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8},
+            )
+            continue
+        start, end = (c0, r0), (c1, r1)
+        ax.add_patch(
+            FancyArrowPatch(
+                start,
+                end,
+                arrowstyle="-|>",
+                mutation_scale=12,
+                color=colour,
+                lw=lw,
+                connectionstyle="arc3,rad=0.2",
+                zorder=9,
+                shrinkA=8,
+                shrinkB=8,
+            )
+        )
+        # The label sits on the arc's bulge, to the right of the direction of travel.
+        mx, my = (c0 + c1) / 2, (r0 + r1) / 2
+        nx, ny = -(r1 - r0), (c1 - c0)
+        ax.text(
+            mx - 0.1 * nx,
+            my - 0.1 * ny,
+            text,
+            fontsize=7,
+            ha="center",
+            va="center",
+            zorder=10,
+            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": colour},
+        )
+    r0, c0 = grid.cells[states[0]]
+    ax.plot([c0], [r0], marker="o", ms=10, mfc="none", mec="black", mew=2, zorder=9)
+    ax.set_title("path: step numbers (n×: n times), ring: stayed", fontsize=9)
+    ax_t.axis("off")
+    labels_s = [str(mdp.states[s]) for s in states]
+    labels_a = [str(mdp.actions[a]) for a in episode.actions]
+    rows_txt = ["t   S_t       A_t      R_t+1", ""]
+    for t in range(min(n_steps, max_rows)):
+        rows_txt.append(f"{t:<3} {labels_s[t]:<9} {labels_a[t]:<8} {episode.rewards[t]:+g}")
+    if n_steps > max_rows:
+        rows_txt.append(f"... ({n_steps - max_rows} more steps)")
+    ending = "terminated" if episode.terminated else "truncated" if episode.truncated else "stopped"
+    rows_txt.append(f"{n_steps:<3} {labels_s[n_steps]:<9} ({ending})")
+    rows_txt.append("")
+    rows_txt.append(f"G_0 = {discounted_return(episode.rewards, g):g}  (γ = {g:g})")
+    table = ax_t.text(
+        0.0,
+        1.0,
+        "\n".join(rows_txt),
+        family="monospace",
+        fontsize=8,
+        va="top",
+        ha="left",
+        transform=ax_t.transAxes,
+    )
+    table.set_in_layout(False)
+    fig.suptitle(title if title is not None else f"One episode — {mdp.name}")
     return fig

@@ -37,9 +37,13 @@ def gym_grid_layout(base: Any, n_states: int, n_actions: int) -> GridLayout | No
     if desc is not None and n_actions == 4:  # FrozenLake
         rows = [[_char(x) for x in row] for row in np.asarray(desc)]
         n_rows, n_cols = len(rows), len(rows[0]) if rows else 0
-        if n_rows * n_cols != n_states or any(ch not in _FROZEN_LAKE_KINDS for r in rows for ch in r):
+        if n_rows * n_cols != n_states or any(
+            ch not in _FROZEN_LAKE_KINDS for r in rows for ch in r
+        ):
             return None
-        kinds = {(r, c): _FROZEN_LAKE_KINDS[rows[r][c]] for r in range(n_rows) for c in range(n_cols)}
+        kinds = {
+            (r, c): _FROZEN_LAKE_KINDS[rows[r][c]] for r in range(n_rows) for c in range(n_cols)
+        }
         return _layout(n_rows, n_cols, kinds, _FROZEN_LAKE_MOVES)
     shape = getattr(base, "shape", None)
     cliff = getattr(base, "_cliff", None)
@@ -63,6 +67,8 @@ def _char(x: Any) -> str:
     return x.decode() if isinstance(x, bytes) else str(x)
 
 
-def _layout(n_rows: int, n_cols: int, kinds: dict[Cell, str], moves: tuple[Cell, ...]) -> GridLayout:
+def _layout(
+    n_rows: int, n_cols: int, kinds: dict[Cell, str], moves: tuple[Cell, ...]
+) -> GridLayout:
     cells = tuple((s // n_cols, s % n_cols) for s in range(n_rows * n_cols))
     return GridLayout(shape=(n_rows, n_cols), cells=cells, kinds=kinds, moves=moves)

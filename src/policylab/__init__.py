@@ -22,6 +22,17 @@ from policylab.exceptions import (
     UnknownProblemError,
 )
 from policylab.mdp import FiniteMDP, GridLayout, Policy, discounted_return, grid_mdp, returns_to_go
+from policylab.planning import (
+    PlanningResult,
+    action_values,
+    compare_policies,
+    evaluate_policy,
+    greedy_policy,
+    modified_policy_iteration,
+    optimal_actions,
+    policy_iteration,
+    value_iteration,
+)
 
 __version__ = "0.1.0"
 
@@ -38,16 +49,25 @@ __all__ = [
     "InvalidPolicyError",
     "MDPEnv",
     "NotConvergedWarning",
+    "PlanningResult",
     "Policy",
     "PolicylabError",
     "ShapeError",
     "UnknownLabelError",
     "UnknownProblemError",
     "__version__",
+    "action_values",
+    "compare_policies",
     "discounted_return",
+    "evaluate_policy",
+    "greedy_policy",
     "grid_mdp",
+    "modified_policy_iteration",
+    "optimal_actions",
+    "policy_iteration",
     "problems",
     "register_envs",
     "returns_to_go",
     "rollout",
+    "value_iteration",
 ]

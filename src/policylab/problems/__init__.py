@@ -4,6 +4,7 @@ Each problem is a function returning a :class:`~policylab.FiniteMDP`; every one 
 registered by name for the command line and as a Gymnasium id.
 """
 
+from policylab.problems.blackjack import BLACKJACK_CARDS, blackjack, blackjack_stick_on_20_policy
 from policylab.problems.notes import (
     MOUNTAIN_GRID,
     SLIPPERY_GRID,
@@ -21,19 +22,40 @@ from policylab.problems.registry import (
     problem,
     register_problem,
 )
+from policylab.problems.td_examples import (
+    CLIFF_GRID,
+    WINDY_GRID,
+    WINDY_WIND,
+    cliff_walking,
+    maximization_bias,
+    random_walk,
+    random_walk_true_values,
+    windy_gridworld,
+)
 
 __all__ = [
+    "BLACKJACK_CARDS",
+    "CLIFF_GRID",
     "MOUNTAIN_GRID",
     "SLIPPERY_GRID",
+    "WINDY_GRID",
+    "WINDY_WIND",
     "ProblemSpec",
+    "blackjack",
+    "blackjack_stick_on_20_policy",
+    "cliff_walking",
     "get_problem",
     "list_problems",
+    "maximization_bias",
     "mountain_gridworld",
     "mountain_gridworld_bad_policy",
     "problem",
+    "random_walk",
+    "random_walk_true_values",
     "recycling_robot",
     "recycling_robot_deterministic_policy",
     "recycling_robot_stochastic_policy",
     "register_problem",
     "slippery_gridworld",
+    "windy_gridworld",
 ]

@@ -1,0 +1,430 @@
+"""Optimal control by dynamic programming: value, policy and modified policy iteration.
+
+See Sutton & Barto chapter 4 and Puterman chapter 6.
+
+All three find v_* and an optimal policy pi_* from the Bellman optimality equation
+
+    v_*(s) = max_{a in A(s)} sum_{s', r} p(s', r | s, a) [r + gamma v_*(s')],
+
+working on the model's sparse (S * A, S) transition matrix; unavailable actions get
+-inf in every maximum.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from policylab.exceptions import InvalidArgumentError, InvalidMDPError, NotConvergedWarning
+from policylab.mdp.policy import Policy
+from policylab.planning._checks import (
+    PolicyLike,
+    as_policy,
+    check_gamma,
+    check_positive_int,
+    check_tol,
+    check_v,
+    require_terminal_reachable,
+)
+from policylab.planning._kernels import gauss_seidel_optimality_sweep
+from policylab.planning._sweeps import run_sweeps, span_bounds
+from policylab.planning.bellman import DEFAULT_TIE_TOL, _policy_matrix, _q, greedy_policy
+from policylab.planning.evaluation import solve_policy_system
+from policylab.planning.result import PlanningResult
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
+
+    from policylab.mdp.finite import FiniteMDP
+
+__all__ = ["modified_policy_iteration", "policy_iteration", "proper_policy", "value_iteration"]
+
+
+def _masked_reward(mdp: FiniteMDP) -> NDArray[np.float64]:
+    """r(s, a) with -inf on unavailable actions, so that they never win a maximum."""
+    return np.where(mdp.action_mask, mdp.expected_reward, -np.inf)
+
+
+def _union_graph(mdp: FiniteMDP) -> sp.csr_array:
+    """S x S graph with an edge s -> s' when some available action can lead there."""
+    S, A = mdp.n_states, mdp.n_actions
+    agg = sp.csr_array(
+        (np.ones(S * A), (np.repeat(np.arange(S), A), np.arange(S * A))), shape=(S, S * A)
+    )
+    return sp.csr_array(agg @ mdp.transition_matrix)
+
+
+def _require_episodic(mdp: FiniteMDP, what: str) -> None:
+    """Gamma = 1: every state must be able to reach a terminal state under some policy."""
+    require_terminal_reachable(
+        mdp, _union_graph(mdp), f"{what} (under any policy)", InvalidMDPError
+    )
+
+
+def value_iteration(
+    mdp: FiniteMDP,
+    *,
+    tol: float = 1e-8,
+    gamma: float | None = None,
+    max_iter: int = 100_000,
+    gauss_seidel: bool = False,
+    v0: ArrayLike | None = None,
+    tie_tol: float = DEFAULT_TIE_TOL,
+) -> PlanningResult:
+    """Value iteration: v_{k+1} = T v_k until v_* is known to within ``tol``.
+
+    (T v)(s) = max_{a in A(s)} [r(s, a) + gamma sum_{s'} p(s' | s, a) v(s')].
+
+    Stopping rule (gamma < 1): synchronous sweeps stop as soon as MacQueen's bounds
+    v_{k+1} + gamma/(1-gamma) min_s d(s) <= v_* <= v_{k+1} + gamma/(1-gamma) max_s d(s),
+    d = v_{k+1} - v_k, pin v_* down to within ``tol``; the midpoint is returned, so
+    ``max_s |res.v(s) - v_*(s)| <= res.error_bound <= tol`` is guaranteed, not hoped
+    for. This stops far earlier than the textbook rule ||d|| < tol (1-gamma)/(2 gamma)
+    when the values move together. Gauss-Seidel sweeps (``gauss_seidel=True``) update
+    states in place in index order and stop when gamma/(1-gamma) max_s |d(s)| <= tol.
+
+    gamma = 1 (episodic tasks): every state must be able to reach a terminal state,
+    and sweeps stop when max_s |d(s)| <= tol; no sup-norm bound exists in general, so
+    ``error_bound`` is None (use :func:`policy_iteration` for an exact answer).
+
+    Args:
+        mdp: The MDP.
+        tol: Accuracy asked of v (see above).
+        gamma: Discount rate; default ``mdp.gamma``.
+        max_iter: The most sweeps; a NotConvergedWarning is issued if they run out.
+        gauss_seidel: In-place (Gauss-Seidel) sweeps instead of synchronous ones.
+        v0: Starting values (default zeros).
+        tie_tol: Tie tolerance of the greedy policy (see :func:`greedy_policy`).
+
+    Returns:
+        A :class:`PlanningResult`; ``history`` holds max_s |d(s)| of each sweep.
+    """
+    t0 = time.perf_counter()
+    g = check_gamma(mdp, gamma)
+    t = check_tol(tol)
+    check_positive_int(max_iter, "max_iter")
+    if g == 1.0:
+        _require_episodic(mdp, "value iteration")
+    start = np.zeros(mdp.n_states) if v0 is None else check_v(mdp, v0, "v0").copy()
+    start[mdp.terminal] = 0.0
+    S, A = mdp.n_states, mdp.n_actions
+    tm = mdp.transition_matrix
+    rm = _masked_reward(mdp)
+    term = mdp.terminal
+
+    def sync(v: NDArray[np.float64]) -> NDArray[np.float64]:
+        q = np.asarray(tm @ v).reshape(S, A)
+        q *= g
+        q += rm
+        out: NDArray[np.float64] = q.max(axis=1)
+        out[term] = 0.0
+        return out
+
+    def gs(v: NDArray[np.float64]) -> float:
+        return gauss_seidel_optimality_sweep(mdp, g, v)
+
+    out = run_sweeps(
+        synchronous=None if gauss_seidel else sync,
+        in_place=gs if gauss_seidel else None,
+        v0=start,
+        live=~term,
+        gamma=g,
+        tol=t,
+        max_iter=max_iter,
+        what="value iteration" + (" (Gauss-Seidel)" if gauss_seidel else ""),
+    )
+    q = _q(mdp, out.v, g)
+    return PlanningResult(
+        v=out.v,
+        q=q,
+        policy=greedy_policy(mdp, q, tie_tol),
+        iterations=out.iterations,
+        converged=out.converged,
+        history=out.history,
+        method="value iteration" + (" (Gauss-Seidel)" if gauss_seidel else ""),
+        gamma=g,
+        residual=out.residual,
+        error_bound=out.error_bound,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def proper_policy(mdp: FiniteMDP) -> Policy:
+    """A deterministic policy that reaches a terminal state with probability 1 from every state.
+
+    Built backwards from the terminal states by breadth-first search: each state takes an
+    action that can move it one step closer to a terminal state, so that from every state
+    some path to termination has positive probability under the policy. Policy iteration
+    starts from it when gamma = 1.
+
+    Raises:
+        InvalidMDPError: Naming the states from which no policy reaches a terminal state.
+    """
+    from scipy.sparse.csgraph import breadth_first_order
+
+    _require_episodic(mdp, "an episodic task")
+    S, A = mdp.n_states, mdp.n_actions
+    g = sp.coo_array(_union_graph(mdp))
+    rows = np.concatenate([g.col, np.full(int(mdp.terminal.sum()), S)])
+    cols = np.concatenate([g.row, np.flatnonzero(mdp.terminal)])
+    rev = sp.csr_array((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(S + 1, S + 1))
+    _, pred = breadth_first_order(rev, S, directed=True, return_predecessors=True)
+    live = np.flatnonzero(~mdp.terminal)
+    target = pred[live]  # a next state one step closer to termination
+    tm = mdp.transition_matrix
+    actions = np.full(S, -1, dtype=np.int64)
+    for a in range(A):
+        todo = actions[live] < 0
+        if not todo.any():
+            break
+        hit = np.asarray(tm[live[todo] * A + a, target[todo]]).ravel() > 0
+        sel = live[todo][hit]
+        actions[sel] = a
+    actions[mdp.terminal] = 0
+    return Policy.from_actions(mdp, actions)
+
+
+def policy_iteration(
+    mdp: FiniteMDP,
+    *,
+    gamma: float | None = None,
+    evaluation: str = "exact",
+    policy: PolicyLike | None = None,
+    max_iter: int = 1000,
+    tol: float | None = None,
+    tie_tol: float = DEFAULT_TIE_TOL,
+    solver: str = "auto",
+) -> PlanningResult:
+    """Policy iteration: evaluate pi_k, improve it greedily, until the policy is stable.
+
+    Evaluation: v_k = v_{pi_k} solves v = r_pi + gamma P_pi v (exactly, or by sweeps).
+    Improvement: pi_{k+1}(s) = argmax_{a in A(s)} [r(s, a) + gamma sum_{s'} p(s'|s, a) v_k(s')],
+    keeping pi_k(s) whenever it is within ``tie_tol`` of the best, so the policy never
+    cycles between equally good actions. It stops when no state changes its action; the
+    returned policy is then greedy with respect to its own values, hence optimal.
+
+    Args:
+        mdp: The MDP.
+        gamma: Discount rate; default ``mdp.gamma``.
+        evaluation: ``"exact"`` (sparse linear solve, see :func:`evaluate_policy`) or
+            ``"iterative"`` (synchronous sweeps to ``tol``, warm-started).
+        policy: The starting policy (default: greedy in the one-step reward r(s, a) for
+            gamma < 1, :func:`proper_policy` for gamma = 1). A stochastic start is
+            evaluated once and improved.
+        max_iter: The most improvement steps (NotConvergedWarning if reached).
+        tol: Evaluation accuracy (iterative sweeps, or GMRES on large systems).
+        tie_tol: Tie tolerance of the improvement step.
+        solver: Linear solver of exact evaluation: ``"auto"``, ``"direct"``, ``"krylov"``.
+
+    Returns:
+        A :class:`PlanningResult`: ``iterations`` counts evaluations; ``history`` the
+        number of states whose action changed at each improvement (its last entry is 0
+        when converged), so the number of improvements that changed the policy is
+        ``(res.history > 0).sum()``.
+    """
+    t0 = time.perf_counter()
+    g = check_gamma(mdp, gamma)
+    check_positive_int(max_iter, "max_iter")
+    if evaluation not in ("exact", "iterative"):
+        raise InvalidArgumentError(f"evaluation must be 'exact' or 'iterative'; got {evaluation!r}")
+    S, A = mdp.n_states, mdp.n_actions
+    live = ~mdp.terminal
+    R = mdp.expected_reward
+    if policy is not None:
+        probs = np.asarray(as_policy(mdp, policy).probs)
+    elif g == 1.0:
+        probs = np.asarray(proper_policy(mdp).probs)
+    else:
+        probs = np.asarray(greedy_policy(mdp, mdp.expected_reward).probs)
+    current = probs.argmax(axis=1)
+    stochastic_start = first_stochastic = bool(np.any((probs > 0).sum(axis=1)[live] > 1))
+    eval_tol = None if tol is None else check_tol(tol)
+    v = np.zeros(S)
+    history: list[float] = []
+    converged = False
+    info: dict[str, Any] = {}
+    bound: float | None = 0.0
+    residual = 0.0
+    for _ in range(max_iter):
+        if stochastic_start:
+            w = probs
+            stochastic_start = False
+        else:
+            w = np.zeros((S, A))
+            w[np.flatnonzero(live), current[live]] = 1.0
+        p_pi = _policy_matrix(mdp, w)
+        r_pi = np.einsum("sa,sa->s", w, R)
+        if evaluation == "exact":
+            v, info = solve_policy_system(
+                mdp, p_pi, r_pi, g, solver=solver, tol=eval_tol, x0=v if history else None
+            )
+            residual = float(info["residual"])
+            bound = info["error_bound"]
+        else:
+            if g == 1.0:
+                require_terminal_reachable(mdp, p_pi, "a policy met by policy iteration")
+
+            def sync(
+                x: NDArray[np.float64], p_pi: sp.csr_array = p_pi, r_pi: NDArray[np.float64] = r_pi
+            ) -> NDArray[np.float64]:
+                return np.asarray(r_pi + g * (p_pi @ x))
+
+            with warnings.catch_warnings():
+                warnings.simplefilter("error", NotConvergedWarning)
+                out = run_sweeps(
+                    synchronous=sync,
+                    in_place=None,
+                    v0=v,
+                    live=live,
+                    gamma=g,
+                    tol=1e-10 if eval_tol is None else eval_tol,
+                    max_iter=100_000,
+                    what="policy evaluation",
+                )
+            v, residual, bound = out.v, out.residual, out.error_bound
+        q = _q(mdp, v, g)
+        best_a = q.argmax(axis=1)
+        best = q[np.arange(S), best_a]
+        cur_q = q[np.arange(S), current]
+        keep = cur_q >= best - tie_tol * np.maximum(1.0, np.abs(best))
+        new = np.where(keep, current, best_a)
+        changed = int(np.count_nonzero((new != current) & live))
+        if not history and first_stochastic:
+            changed = max(changed, 1)  # a stochastic start always changes to deterministic
+        history.append(changed)
+        current = new
+        if changed == 0:
+            converged = True
+            break
+    if not converged:
+        warnings.warn(
+            f"policy iteration stopped after {len(history)} improvements (max_iter) with "
+            f"{history[-1]:g} states still changing",
+            NotConvergedWarning,
+            stacklevel=2,
+        )
+    pol = Policy.from_actions(mdp, np.where(live, current, 0))
+    return PlanningResult(
+        v=v,
+        q=q,
+        policy=pol,
+        iterations=len(history),
+        converged=converged,
+        history=np.asarray(history, dtype=np.float64),
+        method=f"policy iteration ({evaluation})",
+        gamma=g,
+        residual=residual,
+        error_bound=bound,
+        seconds=time.perf_counter() - t0,
+        info=dict(info),
+    )
+
+
+def modified_policy_iteration(
+    mdp: FiniteMDP,
+    *,
+    m: int = 10,
+    tol: float = 1e-8,
+    gamma: float | None = None,
+    max_iter: int = 100_000,
+    v0: ArrayLike | None = None,
+    tie_tol: float = DEFAULT_TIE_TOL,
+) -> PlanningResult:
+    """Modified policy iteration (Puterman 6.5): greedy step, then m partial evaluation sweeps.
+
+    Each iteration k computes q_k = r + gamma P v_k, the greedy policy pi_k and
+    T v_k = max_a q_k, then v_{k+1} = T_{pi_k}^m (T v_k) by m cheap sweeps with P_pi_k
+    (one action per state). m = 0 is value iteration; m -> infinity is policy
+    iteration. The stopping rule is value iteration's: MacQueen's bounds on
+    d = T v_k - v_k prove max_s |v(s) - v_*(s)| <= ``tol`` (gamma < 1); with gamma = 1
+    it stops when max_s |d(s)| <= tol and gives no bound.
+
+    Args:
+        mdp: The MDP.
+        m: Partial evaluation sweeps per improvement.
+        tol: Accuracy asked of v.
+        gamma: Discount rate; default ``mdp.gamma``.
+        max_iter: The most improvements (NotConvergedWarning if reached).
+        v0: Starting values (default zeros).
+        tie_tol: Tie tolerance of the greedy policy.
+
+    Returns:
+        A :class:`PlanningResult`; ``history`` holds max_s |T v_k(s) - v_k(s)|.
+    """
+    t0 = time.perf_counter()
+    g = check_gamma(mdp, gamma)
+    t = check_tol(tol)
+    check_positive_int(max_iter, "max_iter")
+    m = check_positive_int(m, "m", minimum=0)
+    if g == 1.0:
+        _require_episodic(mdp, "modified policy iteration")
+    S, A = mdp.n_states, mdp.n_actions
+    live = ~mdp.terminal
+    has_terminal = not bool(live.all())
+    tm = mdp.transition_matrix
+    rm = _masked_reward(mdp)
+    R = mdp.expected_reward
+    v = np.zeros(S) if v0 is None else check_v(mdp, v0, "v0").copy()
+    v[mdp.terminal] = 0.0
+    history: list[float] = []
+    converged = False
+    bound: float | None = None
+    residual = np.inf
+    rows = np.arange(S)
+    for _ in range(max_iter):
+        q = np.asarray(tm @ v).reshape(S, A)
+        q *= g
+        q += rm
+        act = q.argmax(axis=1)
+        tv = q[rows, act]
+        tv[mdp.terminal] = 0.0
+        d = tv - v
+        residual = float(np.abs(d).max())
+        history.append(residual)
+        if g < 1.0:
+            shift, bound = span_bounds(d[live], g, has_terminal)
+            if bound <= t:
+                tv[live] += shift
+                v = tv
+                converged = True
+                break
+        elif residual <= t:
+            v = tv
+            converged = True
+            break
+        if not np.isfinite(residual):
+            v = tv
+            break
+        v = tv
+        if m:
+            sel = rows * A + act
+            p_pi = sp.csr_array(tm[sel])
+            r_pi = R[rows, act]
+            r_pi[mdp.terminal] = 0.0
+            for _k in range(m):
+                v = r_pi + g * (p_pi @ v)
+    if not converged:
+        warnings.warn(
+            f"modified policy iteration stopped after {len(history)} improvements (max_iter): "
+            f"last change {residual:.3g} > tol {t:g}",
+            NotConvergedWarning,
+            stacklevel=2,
+        )
+    q = _q(mdp, v, g)
+    return PlanningResult(
+        v=v,
+        q=q,
+        policy=greedy_policy(mdp, q, tie_tol),
+        iterations=len(history),
+        converged=converged,
+        history=np.asarray(history),
+        method=f"modified policy iteration (m={m})",
+        gamma=g,
+        residual=residual,
+        error_bound=bound if g < 1.0 else None,
+        seconds=time.perf_counter() - t0,
+    )

@@ -1,0 +1,279 @@
+"""What every tabular learner shares: checks, checkpoints, error recorder, progress.
+
+Also the general path's observation index over a Gymnasium env.
+
+A learner's body reads top to bottom as (see :mod:`policylab.tabular.mc`)::
+
+    episodes = check_episodes(episodes)
+    ckpts = checkpoint_episodes(episodes, checkpoints)
+    rec = Recorder(truth, ckpts)              # truth: GroundTruth or None
+    with progress_bar(progress, episodes, "mc-control") as advance:
+        for k0, k1 in rec.chunks():           # run episodes k0..k1-1, then record
+            ... kernel or Python loop ...
+            rec.record(k1, q, v)
+            advance(k1 - k0)
+    return LearnResult(..., **rec.arrays())
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Hashable, Iterator, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from policylab.exceptions import InvalidArgumentError, UnknownLabelError
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
+    from policylab.mdp.finite import FiniteMDP
+    from policylab.tabular.truth import GroundTruth
+
+__all__ = [
+    "Recorder",
+    "StateIndex",
+    "check_episodes",
+    "check_gamma",
+    "checkpoint_episodes",
+    "is_finite_mdp",
+    "progress_bar",
+    "start_state",
+]
+
+
+def check_episodes(episodes: Any, what: str = "episodes") -> int:
+    """A positive integer number of episodes, or an InvalidArgumentError."""
+    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise InvalidArgumentError(f"{what} must be a positive integer; got {episodes!r}")
+    return int(episodes)
+
+
+def check_gamma(gamma: Any, default: float) -> float:
+    """Gamma in [0, 1] (None: the problem's own)."""
+    if gamma is None:
+        return float(default)
+    try:
+        g = float(gamma)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(f"gamma must be a number in [0, 1]; got {gamma!r}") from None
+    if not 0.0 <= g <= 1.0:
+        raise InvalidArgumentError(f"gamma must be in [0, 1]; got {gamma!r}")
+    return g
+
+
+def checkpoint_episodes(episodes: int, checkpoints: int = 50) -> NDArray[np.int64]:
+    """Episode counts at which the error is recorded.
+
+    About ``checkpoints`` of them, spaced evenly on a log scale from 1 to ``episodes``
+    (always ending at ``episodes``).
+    """
+    if (
+        isinstance(checkpoints, bool)
+        or not isinstance(checkpoints, (int, np.integer))
+        or checkpoints < 1
+    ):
+        raise InvalidArgumentError(f"checkpoints must be a positive integer; got {checkpoints!r}")
+    pts = np.unique(np.geomspace(1, episodes, num=int(checkpoints)).round().astype(np.int64))
+    pts = pts[(pts >= 1) & (pts <= episodes)]
+    if len(pts) == 0 or pts[-1] != episodes:
+        pts = np.append(pts, episodes)
+    return pts
+
+
+def is_finite_mdp(problem: Any) -> bool:
+    """Whether a learner's ``problem`` takes the fast path (a FiniteMDP)."""
+    from policylab.mdp.finite import FiniteMDP
+
+    return isinstance(problem, FiniteMDP)
+
+
+def start_state(mdp: FiniteMDP, start: Hashable | None) -> NDArray[np.float64]:
+    """The start distribution: the MDP's own, or all mass on the labelled state ``start``."""
+    if start is None:
+        return np.ascontiguousarray(mdp.initial, dtype=np.float64)
+    s = mdp.state_index(start)
+    if mdp.terminal[s]:
+        raise InvalidArgumentError(f"cannot start in terminal state {start!r}")
+    init = np.zeros(mdp.n_states)
+    init[s] = 1.0
+    return init
+
+
+class Recorder:
+    """Records the error against the ground truth at checkpoint episodes.
+
+    Args:
+        truth: The exact answer, or None (then only the checkpoints drive the chunks).
+        checkpoints: Increasing episode counts (from :func:`checkpoint_episodes`).
+    """
+
+    def __init__(self, truth: GroundTruth | None, checkpoints: NDArray[np.int64]) -> None:
+        self.truth = truth
+        self.checkpoints = np.asarray(checkpoints, dtype=np.int64)
+        self._max: list[float] = []
+        self._rms: list[float] = []
+        self._opt: list[float] = []
+
+    def chunks(self) -> Iterator[tuple[int, int]]:
+        """``(k0, k1)``: run episodes k0..k1-1, then record at k1 (one per checkpoint)."""
+        k0 = 0
+        for k1 in self.checkpoints:
+            yield k0, int(k1)
+            k0 = int(k1)
+
+    def record(
+        self,
+        q: NDArray[np.float64] | None,
+        v: NDArray[np.float64] | None,
+        seen: NDArray[np.bool_] | None = None,
+    ) -> None:
+        """Score the current estimate (no-op without truth)."""
+        if self.truth is None:
+            return
+        e_max, e_rms, share = self.truth.errors(q, v, seen)
+        self._max.append(e_max)
+        self._rms.append(e_rms)
+        self._opt.append(share)
+
+    def arrays(self) -> dict[str, Any]:
+        """The ``LearnResult`` fields of the error curve."""
+        if self.truth is None:
+            return {"checkpoints": np.zeros(0, dtype=np.int64), "error_target": None}
+        n = len(self._max)
+        return {
+            "checkpoints": self.checkpoints[:n].copy(),
+            "error_max": np.asarray(self._max),
+            "error_rms": np.asarray(self._rms),
+            "optimal_actions": np.asarray(self._opt),
+            "error_target": self.truth.target,
+        }
+
+
+@contextlib.contextmanager
+def progress_bar(enabled: bool, total: int, description: str) -> Iterator[Callable[[int], None]]:
+    """A rich progress bar over episodes (to stderr); yields ``advance(n)``."""
+    if not enabled:
+        yield lambda n: None
+        return
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("episodes"),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    ) as prog:
+        task = prog.add_task(description, total=total)
+        yield lambda n: prog.advance(task, n)
+
+
+def _normalize(obs: Any) -> Hashable:
+    """An observation as a hashable key: NumPy scalars to Python numbers, arrays to tuples."""
+    if isinstance(obs, np.ndarray):
+        return tuple(_normalize(x) for x in obs.tolist()) if obs.ndim else _normalize(obs.item())
+    if isinstance(obs, (np.integer, np.bool_)):
+        return int(obs)
+    if isinstance(obs, np.floating):
+        return float(obs)
+    if isinstance(obs, (tuple, list)):
+        return tuple(_normalize(x) for x in obs)
+    return obs  # type: ignore[no-any-return]
+
+
+class StateIndex:
+    """Maps a Gymnasium env's observations to rows of the tables (the general path).
+
+    Three kinds: ``StateIndex.discrete(n)`` for ``Discrete(n)`` observations (row =
+    the observation), ``StateIndex.of_labels(labels)`` for a fixed list of hashable
+    labels (for example a FiniteMDP's ``states``, so that the tables line up with its
+    exact values), and ``StateIndex.growing()``, which numbers new observations as they
+    come (Blackjack's tuples without a model).
+    """
+
+    def __init__(self, labels: Sequence[Hashable] | None, n: int | None, fixed: bool) -> None:
+        self._labels: list[Hashable] = list(labels) if labels is not None else []
+        self._index: dict[Hashable, int] = {lab: i for i, lab in enumerate(self._labels)}
+        self._n = n
+        self.fixed = fixed
+
+    @classmethod
+    def discrete(cls, n: int) -> StateIndex:
+        """Observations are the integers 0..n-1."""
+        return cls(None, int(n), True)
+
+    @classmethod
+    def of_labels(cls, labels: Sequence[Hashable]) -> StateIndex:
+        """Observations are these labels (an unknown observation raises)."""
+        return cls(labels, None, True)
+
+    @classmethod
+    def growing(cls) -> StateIndex:
+        """Observations are numbered in order of first appearance."""
+        return cls(None, None, False)
+
+    @classmethod
+    def for_env(cls, env: Any) -> StateIndex:
+        """The natural index of an env: ``discrete`` for Discrete spaces, else ``growing``."""
+        from gymnasium import spaces
+
+        space = getattr(env, "observation_space", None)
+        if isinstance(space, spaces.Discrete):
+            if int(space.start) != 0:
+                return cls.growing()
+            return cls.discrete(int(space.n))
+        return cls.growing()
+
+    def __len__(self) -> int:
+        return self._n if self._n is not None else len(self._labels)
+
+    @property
+    def labels(self) -> tuple[Hashable, ...]:
+        """The label of each row."""
+        if self._n is not None:
+            return tuple(range(self._n))
+        return tuple(self._labels)
+
+    def __call__(self, obs: Any) -> int:
+        """The row of an observation (a new row for a new one, if growing)."""
+        if self._n is not None:
+            i = int(obs)
+            if not 0 <= i < self._n:
+                raise InvalidArgumentError(f"observation {obs!r} is outside Discrete({self._n})")
+            return i
+        key = _normalize(obs)
+        try:
+            return self._index[key]
+        except KeyError:
+            if self.fixed:
+                raise UnknownLabelError(
+                    f"observation {key!r} is not one of the {len(self._labels)} known states"
+                ) from None
+        except TypeError:
+            raise InvalidArgumentError(
+                f"observation {obs!r} is not hashable; the general tabular path needs discrete "
+                "or hashable observations"
+            ) from None
+        self._index[key] = len(self._labels)
+        self._labels.append(key)
+        return len(self._labels) - 1
+
+
+def grow_rows(arr: NDArray[Any], n: int, fill: Any = 0) -> NDArray[Any]:
+    """``arr`` with at least ``n`` rows (capacity doubles; new rows hold ``fill``)."""
+    if arr.shape[0] >= n:
+        return arr
+    new = np.full((max(n, 2 * arr.shape[0]), *arr.shape[1:]), fill, dtype=arr.dtype)
+    new[: arr.shape[0]] = arr
+    return new

@@ -1,0 +1,1088 @@
+"""Monte Carlo methods (notes section 6; Sutton & Barto chapter 5).
+
+Generate episodes with a policy, then average the returns that follow the visits of
+each state (V) and each state-action pair (Q): the notes' Q-table. With first-visit
+MC only the first visit of a pair in an episode counts; with every-visit MC every
+visit does. The averages are kept incrementally with visit counts,
+
+    N(s, a) <- N(s, a) + 1,   Q(s, a) <- Q(s, a) + alpha_N (G_t - Q(s, a)),
+
+where alpha_N = 1/N gives the exact sample average (constant alpha gives
+constant-alpha MC). The notes' last step, a greedy policy from the Q-table, is
+``result.policy``.
+
+Learners:
+
+* :func:`mc_prediction`: estimate v_pi and q_pi of a given policy (first- or
+  every-visit).
+* :func:`mc_control`: on-policy control, with exploring starts (the greedy policy,
+  S_0 and A_0 uniform) or epsilon-greedy with a GLIE schedule (epsilon_k = 1/k by
+  default); sample-average or constant-alpha updates.
+* :func:`mc_off_policy`: off-policy prediction of a target policy from a behaviour
+  policy's episodes, or control of the greedy policy, by ordinary or weighted
+  importance sampling.
+
+Each runs on a :class:`~policylab.FiniteMDP` (compiled kernels) or on a Gymnasium env
+(a Python loop); both call the same compiled update :func:`mc_episode_update`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Hashable
+from typing import TYPE_CHECKING, Any, Literal
+
+import numba as nb
+import numpy as np
+
+from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
+from policylab.tabular.common import (
+    Recorder,
+    StateIndex,
+    check_episodes,
+    check_gamma,
+    checkpoint_episodes,
+    grow_rows,
+    is_finite_mdp,
+    progress_bar,
+    start_state,
+)
+from policylab.tabular.kernels import (
+    EPSILON_GREEDY,
+    FIXED_POLICY,
+    KernelMDP,
+    epsilon_greedy_action,
+    epsilon_greedy_prob,
+    exploring_start_state,
+    generate_episode,
+    greedy_action,
+    rng_states,
+    sample_action,
+    uniform_action,
+    writable,
+)
+from policylab.tabular.result import LearnResult
+from policylab.tabular.schedules import Schedule, as_schedule, schedule_value
+from policylab.tabular.truth import GroundTruth, greedy_probs
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
+    from policylab.mdp.finite import FiniteMDP
+    from policylab.mdp.policy import Policy
+
+__all__ = [
+    "AVERAGE",
+    "IS_CONTROL",
+    "IS_PREDICTION",
+    "episode_return",
+    "first_visit_flags",
+    "mc_control",
+    "mc_episode_update",
+    "mc_off_policy",
+    "mc_prediction",
+]
+
+Seed = int | np.random.Generator | None
+
+#: Update kinds of :func:`mc_episode_update`.
+AVERAGE, IS_PREDICTION, IS_CONTROL = 0, 1, 2
+
+
+# =============================================================================== update rules
+@nb.njit(cache=True, nogil=True)
+def episode_return(rewards: NDArray[np.float64], T: int, gamma: float) -> float:  # pragma: no cover
+    """G_0 = sum_{k=0}^{T-1} gamma^k R_{k+1} of the episode in ``rewards[:T]``."""
+    g = 0.0
+    for t in range(T - 1, -1, -1):
+        g = rewards[t] + gamma * g
+    return g
+
+
+@nb.njit(cache=True, nogil=True)
+def first_visit_flags(
+    keys: NDArray[np.int64], T: int, mark: NDArray[np.int64], stamp: int, flags: NDArray[np.bool_]
+) -> None:  # pragma: no cover - compiled
+    """flags[t] = True iff keys[t] does not occur in keys[:t] (the first visit at time t).
+
+    ``mark`` is a scratch array over all keys and ``stamp`` a number never used before
+    with it (the episode number), so nothing needs clearing between episodes.
+    """
+    for t in range(T):
+        k = keys[t]
+        if mark[k] != stamp:
+            mark[k] = stamp
+            flags[t] = True
+        else:
+            flags[t] = False
+
+
+@nb.njit(cache=True, nogil=True)
+def mc_episode_update(
+    kind: int,
+    q: NDArray[np.float64],
+    nq: NDArray[np.float64],
+    cq: NDArray[np.float64],
+    v: NDArray[np.float64],
+    nv: NDArray[np.float64],
+    cv: NDArray[np.float64],
+    n_actions: int,
+    buf_s: NDArray[np.int64],
+    buf_a: NDArray[np.int64],
+    buf_r: NDArray[np.float64],
+    buf_b: NDArray[np.float64],
+    T: int,
+    gamma: float,
+    first_visit: bool,
+    alpha: NDArray[np.float64],
+    weighted: bool,
+    target: NDArray[np.float64],
+    mask: NDArray[np.bool_],
+    keys: NDArray[np.int64],
+    flags_q: NDArray[np.bool_],
+    flags_v: NDArray[np.bool_],
+    mark_q: NDArray[np.int64],
+    mark_v: NDArray[np.int64],
+    stamp: int,
+) -> None:  # pragma: no cover - compiled
+    """Update the tables from one finished episode, backwards from t = T - 1 to 0.
+
+    G_t = R_{t+1} + gamma G_{t+1}. Flat tables: ``q, nq, cq`` over s * A + a and
+    ``v, nv, cv`` over s (values, visit counts, cumulative importance weights).
+
+    * ``AVERAGE`` (on-policy): N <- N + 1; Q(S_t, A_t) <- Q + alpha_N (G_t - Q), and
+      the same for V(S_t); alpha_N = schedule ``alpha`` at N (1/N: sample average).
+    * ``IS_PREDICTION``: rho_t = pi(A_t | S_t) / b(A_t | S_t); W_t = prod_{k=t+1}^{T-1}
+      rho_k for Q(S_t, A_t) and rho_t W_t for V(S_t). Ordinary importance sampling:
+      N <- N + 1, Q <- Q + (W G_t - Q) / N, the mean of W G over all visits. Weighted:
+      C <- C + W, Q <- Q + (W / C)(G_t - Q), i.e. sum W G / sum W.
+    * ``IS_CONTROL``: the same for the greedy target pi(s) = argmax_a Q(s, a) (updated
+      as it goes, Sutton & Barto section 5.7): after updating Q(S_t, A_t), W becomes 0
+      (weighted: stop) if A_t is not greedy, else W <- W / b(A_t | S_t).
+
+    With ``first_visit`` only the first visit of a key in the episode is used.
+    """
+    for t in range(T):
+        keys[t] = buf_s[t] * n_actions + buf_a[t]
+    if first_visit:
+        first_visit_flags(keys, T, mark_q, stamp, flags_q)
+        first_visit_flags(buf_s, T, mark_v, stamp, flags_v)
+    g = 0.0
+    w = 1.0
+    for t in range(T - 1, -1, -1):
+        g = buf_r[t] + gamma * g
+        s = buf_s[t]
+        k = keys[t]
+        use_q = (not first_visit) or flags_q[t]
+        use_v = (not first_visit) or flags_v[t]
+        if kind == 0:
+            if use_q:
+                nq[k] += 1.0
+                q[k] += schedule_value(alpha, nq[k]) * (g - q[k])
+            if use_v:
+                nv[s] += 1.0
+                v[s] += schedule_value(alpha, nv[s]) * (g - v[s])
+            continue
+        rho = target[k] / buf_b[t] if kind == 1 else 0.0
+        w_v = w * rho
+        if use_q:
+            nq[k] += 1.0
+            if weighted:
+                if w > 0.0:
+                    cq[k] += w
+                    q[k] += (w / cq[k]) * (g - q[k])
+            else:
+                q[k] += (w * g - q[k]) / nq[k]
+        if kind == 1 and use_v:
+            nv[s] += 1.0
+            if weighted:
+                if w_v > 0.0:
+                    cv[s] += w_v
+                    v[s] += (w_v / cv[s]) * (g - v[s])
+            else:
+                v[s] += (w_v * g - v[s]) / nv[s]
+        if kind == 2:
+            row = q[s * n_actions : (s + 1) * n_actions]
+            if buf_a[t] == greedy_action(row, mask[s]):
+                rho = 1.0 / buf_b[t]
+        w *= rho
+        if weighted and w == 0.0:
+            break
+
+
+# =============================================================================== fast path
+@nb.njit(cache=True, nogil=True)
+def _mc_chunk(
+    indptr: NDArray[np.int64],
+    next_states: NDArray[np.int32],
+    probs: NDArray[np.float64],
+    rewards: NDArray[np.float64],
+    terminal: NDArray[np.bool_],
+    mask: NDArray[np.bool_],
+    initial: NDArray[np.float64],
+    gamma: float,
+    kind: int,
+    policy_kind: int,
+    pi: NDArray[np.float64],
+    q2: NDArray[np.float64],
+    eps_params: NDArray[np.float64],
+    exploring_starts: bool,
+    first_visit: bool,
+    alpha: NDArray[np.float64],
+    weighted: bool,
+    target: NDArray[np.float64],
+    nq: NDArray[np.float64],
+    cq: NDArray[np.float64],
+    v: NDArray[np.float64],
+    nv: NDArray[np.float64],
+    cv: NDArray[np.float64],
+    rng: NDArray[np.uint64],
+    k0: int,
+    k1: int,
+    returns: NDArray[np.float64],
+    work_i: NDArray[np.int64],
+    work_f: NDArray[np.float64],
+    work_b: NDArray[np.bool_],
+    mark_q: NDArray[np.int64],
+    mark_v: NDArray[np.int64],
+) -> tuple[int, int]:  # pragma: no cover - compiled
+    """Run episodes k0..k1-1 on the outcome table; return (steps, truncated episodes)."""
+    n_actions = mask.shape[1]
+    m = work_f.shape[0] // 2
+    buf_s = work_i[: m + 1]
+    buf_a = work_i[m + 1 : 2 * m + 1]
+    keys = work_i[2 * m + 1 :]
+    buf_r = work_f[:m]
+    buf_b = work_f[m:]
+    flags_q = work_b[:m]
+    flags_v = work_b[m:]
+    q = q2.ravel()
+    steps = 0
+    truncated = 0
+    for k in range(k0, k1):
+        eps = schedule_value(eps_params, k + 1.0)
+        T = generate_episode(
+            indptr,
+            next_states,
+            probs,
+            rewards,
+            terminal,
+            mask,
+            initial,
+            policy_kind,
+            pi,
+            q2,
+            eps,
+            exploring_starts,
+            rng,
+            buf_s,
+            buf_a,
+            buf_r,
+            buf_b,
+        )
+        if T < 0:
+            truncated += 1
+            steps += -T
+            returns[k] = episode_return(buf_r, -T, gamma)
+            continue
+        steps += T
+        returns[k] = episode_return(buf_r, T, gamma)
+        mc_episode_update(
+            kind,
+            q,
+            nq,
+            cq,
+            v,
+            nv,
+            cv,
+            n_actions,
+            buf_s,
+            buf_a,
+            buf_r,
+            buf_b,
+            T,
+            gamma,
+            first_visit,
+            alpha,
+            weighted,
+            target,
+            mask,
+            keys,
+            flags_q,
+            flags_v,
+            mark_q,
+            mark_v,
+            k + 1,
+        )
+    return steps, truncated
+
+
+class _Tables:
+    """The per-run tables and scratch buffers of a Monte Carlo learner."""
+
+    def __init__(self, S: int, A: int, max_steps: int) -> None:
+        self.q = np.zeros((S, A))
+        self.nq = np.zeros(S * A)
+        self.cq = np.zeros(S * A)
+        self.v = np.zeros(S)
+        self.nv = np.zeros(S)
+        self.cv = np.zeros(S)
+        self.mark_q = np.zeros(S * A, dtype=np.int64)
+        self.mark_v = np.zeros(S, dtype=np.int64)
+        m = max_steps
+        self.work_i = np.zeros(3 * m + 1, dtype=np.int64)
+        self.work_f = np.zeros(2 * m)
+        self.work_b = np.zeros(2 * m, dtype=np.bool_)
+        self.max_steps = m
+
+    def grow(self, S: int) -> None:
+        """Make room for S states (general path with a growing state index)."""
+        if self.q.shape[0] >= S:
+            return
+        A = self.q.shape[1]
+        self.q = grow_rows(self.q, S)
+        n = self.q.shape[0]
+        self.nq = _grow_flat(self.nq, n * A)
+        self.cq = _grow_flat(self.cq, n * A)
+        self.mark_q = _grow_flat(self.mark_q, n * A)
+        self.v = _grow_flat(self.v, n)
+        self.nv = _grow_flat(self.nv, n)
+        self.cv = _grow_flat(self.cv, n)
+        self.mark_v = _grow_flat(self.mark_v, n)
+
+    def buffers(self) -> tuple[NDArray[Any], ...]:
+        """(buf_s, buf_a, keys, buf_r, buf_b, flags_q, flags_v) views of the scratch."""
+        m = self.max_steps
+        wi, wf, wb = self.work_i, self.work_f, self.work_b
+        return wi[: m + 1], wi[m + 1 : 2 * m + 1], wi[2 * m + 1 :], wf[:m], wf[m:], wb[:m], wb[m:]
+
+
+def _grow_flat(arr: NDArray[Any], n: int) -> NDArray[Any]:
+    if arr.shape[0] >= n:
+        return arr
+    out = np.zeros(n, dtype=arr.dtype)
+    out[: arr.shape[0]] = arr
+    return out
+
+
+# =============================================================================== driver
+def _run(
+    algorithm: str,
+    problem: Any,
+    *,
+    kind: int,
+    episodes: int,
+    seed: Seed,
+    gamma: float | None,
+    policy: Policy | Callable[[Any], Any] | None,
+    policy_kind: int,
+    epsilon: Schedule,
+    exploring_starts: bool,
+    first_visit: bool,
+    alpha: Schedule,
+    weighted: bool,
+    target: Policy | None,
+    truth_kind: Literal["prediction", "control"],
+    truth_policy: Policy | None,
+    error_on: Literal["v", "q"],
+    checkpoints: int,
+    max_steps: int,
+    start: Hashable | None,
+    progress: bool,
+    model: FiniteMDP | None,
+    params: dict[str, Any],
+) -> LearnResult:
+    """Shared body of the three learners: fast path on a FiniteMDP, else the env loop."""
+    episodes = check_episodes(episodes)
+    max_steps = check_episodes(max_steps, "max_steps")
+    ckpts = checkpoint_episodes(episodes, checkpoints)
+    mdp: FiniteMDP | None
+    if is_finite_mdp(problem):
+        mdp = problem
+        env = None
+    else:
+        env = _as_env(problem)
+        mdp = model if model is not None else getattr(getattr(env, "unwrapped", env), "mdp", None)
+        if start is not None:
+            raise InvalidArgumentError(
+                "start= is only supported on a FiniteMDP; reset the env instead"
+            )
+    g = check_gamma(gamma, mdp.gamma if mdp is not None else 1.0)
+    if mdp is not None and not mdp.terminal.any():
+        raise InvalidArgumentError(
+            f"Monte Carlo needs an episodic task; {mdp.name!r} has no terminal state (use a TD "
+            "method for continuing tasks)"
+        )
+    truth: GroundTruth | None = None
+    if mdp is not None:
+        if truth_kind == "prediction":
+            assert truth_policy is not None  # set by the callers, never from user input
+            truth = GroundTruth.prediction(mdp, truth_policy, on=error_on, gamma=g)
+        else:
+            truth = GroundTruth.control(mdp, on=error_on, gamma=g)
+    rec = Recorder(truth, ckpts)
+    returns = np.zeros(episodes)
+    gen = np.random.default_rng(seed)
+    rng = rng_states(gen, 1)[0]
+    t0 = time.perf_counter()
+    if env is None and mdp is not None:
+        tables, steps, truncated = _run_fast(
+            mdp,
+            rec,
+            returns,
+            rng,
+            kind=kind,
+            gamma=g,
+            policy=policy,
+            policy_kind=policy_kind,
+            epsilon=epsilon,
+            exploring_starts=exploring_starts,
+            first_visit=first_visit,
+            alpha=alpha,
+            weighted=weighted,
+            target=target,
+            max_steps=max_steps,
+            start=start,
+            progress=progress,
+            name=algorithm,
+        )
+        index_labels: tuple[Hashable, ...] = mdp.states
+    else:
+        tables, steps, truncated, index_labels = _run_env(
+            env,
+            mdp,
+            rec,
+            returns,
+            rng,
+            gen,
+            kind=kind,
+            gamma=g,
+            policy=policy,
+            policy_kind=policy_kind,
+            epsilon=epsilon,
+            exploring_starts=exploring_starts,
+            first_visit=first_visit,
+            alpha=alpha,
+            weighted=weighted,
+            target=target,
+            max_steps=max_steps,
+            progress=progress,
+            name=algorithm,
+        )
+    seconds = time.perf_counter() - t0
+    S = len(index_labels)
+    q = tables.q[:S].copy()
+    if mdp is not None:
+        mask = np.asarray(mdp.action_mask, dtype=bool)
+        terminal = np.asarray(mdp.terminal, dtype=bool)
+        actions = mdp.actions
+    else:
+        mask = np.ones(q.shape, dtype=bool)
+        terminal = np.zeros(S, dtype=bool)
+        actions = tuple(range(q.shape[1]))
+    q[~mask] = 0.0
+    if (kind == AVERAGE and truth_kind == "prediction") or kind == IS_PREDICTION:
+        v = tables.v[:S].copy()
+    else:
+        v = np.where(mask, q, -np.inf).max(axis=1)
+        v[~mask.any(axis=1)] = 0.0
+    v[terminal] = 0.0
+    return LearnResult(
+        algorithm=algorithm,
+        problem=mdp.name if mdp is not None else _env_name(env),
+        states=tuple(index_labels),
+        actions=tuple(actions),
+        q=q,
+        v=v,
+        policy=greedy_probs(q, mask),
+        terminal=terminal,
+        action_mask=mask,
+        counts=tables.nq[: S * q.shape[1]].reshape(S, q.shape[1]).copy(),
+        episodes=episodes,
+        steps=int(steps),
+        seconds=seconds,
+        episode_returns=returns,
+        truncated=int(truncated),
+        params={
+            **params,
+            "gamma": g,
+            "seed": seed if isinstance(seed, (int, np.integer)) else None,
+            "path": "compiled" if env is None else "gymnasium",
+        },
+        mdp=mdp,
+        **rec.arrays(),
+    )
+
+
+def _run_fast(
+    mdp: FiniteMDP,
+    rec: Recorder,
+    returns: NDArray[np.float64],
+    rng: NDArray[np.uint64],
+    *,
+    kind: int,
+    gamma: float,
+    policy: Any,
+    policy_kind: int,
+    epsilon: Schedule,
+    exploring_starts: bool,
+    first_visit: bool,
+    alpha: Schedule,
+    weighted: bool,
+    target: Policy | None,
+    max_steps: int,
+    start: Hashable | None,
+    progress: bool,
+    name: str,
+) -> tuple[_Tables, int, int]:
+    """The compiled path: chunks of episodes between checkpoints, in a numba kernel."""
+    km = KernelMDP.of(mdp, gamma)
+    S, A = mdp.n_states, mdp.n_actions
+    tables = _Tables(S, A, max_steps)
+    pi = writable(policy.probs if policy_kind == FIXED_POLICY else np.zeros((S, A)), np.float64)
+    tgt = writable(target.probs.ravel() if target is not None else np.zeros(S * A), np.float64)
+    initial = writable(start_state(mdp, start), np.float64)
+    eps_p, alpha_p = epsilon.params, alpha.params
+    steps = truncated = 0
+    with progress_bar(progress, len(returns), name) as advance:
+        for k0, k1 in rec.chunks():
+            st, tr = _mc_chunk(
+                km.indptr,
+                km.next_states,
+                km.probs,
+                km.rewards,
+                km.terminal,
+                km.mask,
+                initial,
+                gamma,
+                kind,
+                policy_kind,
+                pi,
+                tables.q,
+                eps_p,
+                exploring_starts,
+                first_visit,
+                alpha_p,
+                weighted,
+                tgt,
+                tables.nq,
+                tables.cq,
+                tables.v,
+                tables.nv,
+                tables.cv,
+                rng,
+                k0,
+                k1,
+                returns,
+                tables.work_i,
+                tables.work_f,
+                tables.work_b,
+                tables.mark_q,
+                tables.mark_v,
+            )
+            steps += st
+            truncated += tr
+            rec.record(tables.q, tables.v)
+            advance(k1 - k0)
+    return tables, steps, truncated
+
+
+# =============================================================================== general path
+def _as_env(problem: Any) -> Any:
+    """A Gymnasium env from an env or an id string; checks its action space."""
+    import gymnasium as gym
+    from gymnasium import spaces
+
+    env = gym.make(problem) if isinstance(problem, str) else problem
+    if not hasattr(env, "reset") or not hasattr(env, "step"):
+        raise InvalidArgumentError(
+            f"problem must be a FiniteMDP or a Gymnasium env; got {type(problem).__name__}"
+        )
+    if not isinstance(env.action_space, spaces.Discrete):
+        raise InvalidArgumentError(
+            f"tabular learners need a Discrete action space; got {env.action_space}"
+        )
+    return env
+
+
+def _env_name(env: Any) -> str:
+    spec = getattr(env, "spec", None)
+    return str(getattr(spec, "id", None) or type(getattr(env, "unwrapped", env)).__name__)
+
+
+def _run_env(
+    env: Any,
+    mdp: FiniteMDP | None,
+    rec: Recorder,
+    returns: NDArray[np.float64],
+    rng: NDArray[np.uint64],
+    gen: np.random.Generator,
+    *,
+    kind: int,
+    gamma: float,
+    policy: Any,
+    policy_kind: int,
+    epsilon: Schedule,
+    exploring_starts: bool,
+    first_visit: bool,
+    alpha: Schedule,
+    weighted: bool,
+    target: Policy | None,
+    max_steps: int,
+    progress: bool,
+    name: str,
+) -> tuple[_Tables, int, int, tuple[Hashable, ...]]:
+    """The general path: a plain Python loop over ``env.reset`` / ``env.step``.
+
+    It calls the compiled action choice and :func:`mc_episode_update` with the same RNG
+    state as the fast path, so on a deterministic MDP both give the same numbers.
+    """
+    A = int(env.action_space.n)
+    if mdp is not None:
+        if mdp.n_actions != A:
+            raise InvalidArgumentError(
+                f"the model {mdp.name!r} has {mdp.n_actions} actions but the env has {A}"
+            )
+        own_model = getattr(getattr(env, "unwrapped", env), "mdp", None) is mdp
+        if own_model:
+            index = StateIndex.discrete(mdp.n_states)
+        else:
+            index = StateIndex.of_labels(mdp.states)
+        mask = writable(mdp.action_mask, np.bool_)
+    else:
+        index = StateIndex.for_env(env)
+        mask = np.ones((max(len(index), 1), A), dtype=np.bool_)
+    if exploring_starts and getattr(getattr(env, "unwrapped", env), "mdp", None) is None:
+        raise InvalidArgumentError(
+            "exploring starts need an env that can start in a chosen state: a FiniteMDP or "
+            "policylab's MDPEnv (Gymnasium envs in general cannot be reset to a state)"
+        )
+    S0 = max(len(index), 1)
+    tables = _Tables(S0, A, max_steps)
+    pi_table = (
+        writable(policy.probs, np.float64)
+        if (policy_kind == FIXED_POLICY and hasattr(policy, "probs"))
+        else None
+    )
+    tgt_flat = (
+        writable(target.probs.ravel(), np.float64) if target is not None else np.zeros(S0 * A)
+    )
+    buf_s, buf_a, keys, buf_r, buf_b, flags_q, flags_v = tables.buffers()
+    eps_p, alpha_p = epsilon.params, alpha.params
+    seen = np.zeros(S0, dtype=bool)
+    terminal_ = writable(mdp.terminal, np.bool_) if mdp is not None else None
+    env_seed: int | None = int(gen.integers(2**31 - 1))
+    steps = truncated = 0
+    with progress_bar(progress, len(returns), name) as advance:
+        for k0, k1 in rec.chunks():
+            for k in range(k0, k1):
+                eps = schedule_value(eps_p, k + 1.0)
+                options = None
+                if exploring_starts:
+                    assert terminal_ is not None and mdp is not None
+                    s_start = exploring_start_state(terminal_, rng)
+                    options = {"state": mdp.states[s_start]}
+                obs, _ = env.reset(seed=env_seed, options=options)
+                env_seed = None
+                t = 0
+                while True:
+                    s = index(obs)
+                    if s >= len(seen):
+                        tables.grow(s + 1)
+                        seen = _grow_flat(seen, tables.q.shape[0])
+                        mask = grow_rows(mask, tables.q.shape[0], fill=True)
+                    seen[s] = True
+                    buf_s[t] = s
+                    if t >= max_steps:
+                        t = -t
+                        break
+                    if exploring_starts and t == 0:
+                        a = uniform_action(mask[s], rng)
+                        b = 1.0 / mask[s].sum()
+                    elif policy_kind == FIXED_POLICY:
+                        row = pi_table[s] if pi_table is not None else _policy_row(policy, obs, A)
+                        a = sample_action(row, rng)
+                        b = float(row[a])
+                    else:
+                        a = epsilon_greedy_action(tables.q[s], mask[s], eps, rng)
+                        b = epsilon_greedy_prob(tables.q[s], mask[s], eps, a)
+                    obs, r, term, trunc, _ = env.step(a)
+                    buf_a[t], buf_r[t], buf_b[t] = a, float(r), b
+                    t += 1
+                    if term:
+                        break
+                    if trunc:
+                        t = -t
+                        break
+                T = t
+                if T < 0:
+                    truncated += 1
+                    steps += -T
+                    returns[k] = episode_return(buf_r, -T, gamma)
+                    continue
+                steps += T
+                returns[k] = episode_return(buf_r, T, gamma)
+                mc_episode_update(
+                    kind,
+                    tables.q.ravel(),
+                    tables.nq,
+                    tables.cq,
+                    tables.v,
+                    tables.nv,
+                    tables.cv,
+                    A,
+                    buf_s,
+                    buf_a,
+                    buf_r,
+                    buf_b,
+                    T,
+                    gamma,
+                    first_visit,
+                    alpha_p,
+                    weighted,
+                    tgt_flat,
+                    mask,
+                    keys,
+                    flags_q,
+                    flags_v,
+                    tables.mark_q,
+                    tables.mark_v,
+                    k + 1,
+                )
+            n = len(index)
+            rec.record(tables.q[:n], tables.v[:n], seen[:n])
+            advance(k1 - k0)
+    return tables, steps, truncated, index.labels
+
+
+def _policy_row(policy: Any, obs: Any, A: int) -> NDArray[np.float64]:
+    """pi(. | obs) from a callable policy of the general path, checked."""
+    row = np.asarray(policy(obs), dtype=np.float64)
+    if row.shape != (A,) or np.any(row < 0) or abs(row.sum() - 1.0) > 1e-8:
+        raise InvalidPolicyError(
+            f"the policy function must return {A} probabilities summing to 1 for observation "
+            f"{obs!r}; got {row!r}"
+        )
+    return row
+
+
+# =============================================================================== learners
+def _fixed_policy(
+    problem: Any, policy: Any, model: FiniteMDP | None, what: str
+) -> tuple[Any, Policy | None]:
+    """(policy for episode generation, Policy over the model for the ground truth)."""
+    from policylab.mdp.policy import Policy
+
+    mdp = problem if is_finite_mdp(problem) else model
+    if mdp is None and not is_finite_mdp(problem):
+        env = _as_env(problem)
+        mdp = getattr(getattr(env, "unwrapped", env), "mdp", None)
+    if policy is None:
+        if mdp is None:
+            raise InvalidArgumentError(
+                f"{what}: give a policy (a function obs -> action probabilities) for an env "
+                "without a model"
+            )
+        pol = Policy.uniform(mdp)
+        return pol, pol
+    if isinstance(policy, Policy):
+        if mdp is not None and (policy.states != mdp.states or policy.actions != mdp.actions):
+            raise InvalidPolicyError(
+                f"{what}: the policy's states/actions do not match the problem {mdp.name!r}"
+            )
+        return policy, policy
+    if callable(policy):
+        if mdp is not None:
+            raise InvalidArgumentError(
+                f"{what}: with a known model pass a policylab Policy (needed for the exact v_pi)"
+            )
+        return policy, None
+    raise InvalidPolicyError(
+        f"{what}: policy must be a Policy or a callable; got {type(policy).__name__}"
+    )
+
+
+def mc_prediction(
+    problem: FiniteMDP | Any,
+    policy: Policy | Callable[[Any], Any] | None = None,
+    *,
+    episodes: int = 10_000,
+    first_visit: bool = True,
+    alpha: Schedule | float | str | None = None,
+    gamma: float | None = None,
+    seed: Seed = None,
+    checkpoints: int = 50,
+    error_on: Literal["v", "q"] = "q",
+    max_steps: int = 10_000,
+    start: Hashable | None = None,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
+) -> LearnResult:
+    """Monte Carlo prediction of v_pi and q_pi (first-visit or every-visit).
+
+    For each episode S_0, A_0, R_1, ..., S_T generated by pi, backwards from t = T - 1:
+    G_t = R_{t+1} + gamma G_{t+1}; N(S_t, A_t) += 1; Q(S_t, A_t) += (G_t - Q) / N (and
+    the same for V(S_t)): Q and V are the running means of the returns after each
+    (first) visit. ``result.policy`` is the greedy policy of the Q-table.
+
+    Args:
+        problem: A FiniteMDP (compiled path) or a Gymnasium env / id (Python loop).
+        policy: The policy to evaluate: a :class:`~policylab.Policy` (default: the
+            equiprobable random policy), or for an env without model a function from an
+            observation to the (A,) action probabilities.
+        episodes: Number of episodes.
+        first_visit: First-visit MC (True) or every-visit MC (False).
+        alpha: Step size: None for the sample average 1/N, a constant (constant-alpha
+            MC) or a :class:`Schedule` of the visit count.
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        checkpoints: About how many points of the error curve (log-spaced).
+        error_on: Score Q against q_pi (``"q"``) or V against v_pi (``"v"``).
+        max_steps: Step limit of an episode; truncated episodes are not averaged.
+        start: Optional start state label (FiniteMDP only).
+        model: The exact FiniteMDP behind an env (for the error curve), e.g.
+            ``pl.problems.blackjack()`` for Gymnasium's Blackjack-v1.
+        progress: Show a progress bar.
+
+    Returns:
+        The :class:`LearnResult` (error against v_pi / q_pi where the model is known).
+    """
+    gen_policy, truth_policy = _fixed_policy(problem, policy, model, "mc_prediction")
+    a = as_schedule(alpha, Schedule.inverse(), "alpha").check_range(0.0, 1.0, "alpha")
+    return _run(
+        "mc-prediction",
+        problem,
+        kind=AVERAGE,
+        episodes=episodes,
+        seed=seed,
+        gamma=gamma,
+        policy=gen_policy,
+        policy_kind=FIXED_POLICY,
+        epsilon=Schedule.constant(0.0),
+        exploring_starts=False,
+        first_visit=bool(first_visit),
+        alpha=a,
+        weighted=False,
+        target=None,
+        truth_kind="prediction",
+        truth_policy=truth_policy,
+        error_on=error_on,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        start=start,
+        progress=progress,
+        model=model,
+        params={"first_visit": bool(first_visit), "alpha": str(a)},
+    )
+
+
+def mc_control(
+    problem: FiniteMDP | Any,
+    *,
+    episodes: int = 100_000,
+    exploring_starts: bool = False,
+    epsilon: Schedule | float | str | None = None,
+    alpha: Schedule | float | str | None = None,
+    first_visit: bool = True,
+    gamma: float | None = None,
+    seed: Seed = None,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    start: Hashable | None = None,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
+) -> LearnResult:
+    """On-policy Monte Carlo control: exploring starts or epsilon-greedy (GLIE).
+
+    Policy evaluation and improvement alternate episode by episode: each episode is
+    generated by the current policy (greedy in Q with exploring starts; epsilon-greedy
+    in Q otherwise), then Q(S_t, A_t) moves towards the returns G_t as in
+    :func:`mc_prediction`. With epsilon_k -> 0 (GLIE: the default epsilon_k = 1/k of
+    episode k) and sample averages Q converges to q*.
+
+    Args:
+        problem: A FiniteMDP (compiled path) or a Gymnasium env / id (Python loop).
+        episodes: Number of episodes.
+        exploring_starts: Start each episode in a uniform state with a uniform first
+            action, then act greedily (Sutton & Barto's Monte Carlo ES). Needs a
+            FiniteMDP or policylab's MDPEnv.
+        epsilon: Exploration schedule over episodes (without exploring starts):
+            default 1/k; a number for a constant epsilon.
+        alpha: Step size: None for sample averages 1/N, a constant for
+            constant-alpha MC, or a :class:`Schedule` of the visit count.
+        first_visit: First-visit (True) or every-visit (False) updates.
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        checkpoints: About how many points of the error curve (log-spaced).
+        max_steps: Step limit of an episode; truncated episodes are not used.
+        start: Optional start state label (FiniteMDP only, without exploring starts).
+        model: The exact FiniteMDP behind an env (for the error curve).
+        progress: Show a progress bar.
+
+    Returns:
+        The :class:`LearnResult`; its error is measured against q*.
+    """
+    if exploring_starts and epsilon is not None:
+        raise InvalidArgumentError("exploring starts act greedily; do not give epsilon with them")
+    eps = as_schedule(epsilon, Schedule.inverse(), "epsilon").check_range(0.0, 1.0, "epsilon")
+    if exploring_starts:
+        eps = Schedule.constant(0.0)
+    a = as_schedule(alpha, Schedule.inverse(), "alpha").check_range(0.0, 1.0, "alpha")
+    return _run(
+        "mc-control",
+        problem,
+        kind=AVERAGE,
+        episodes=episodes,
+        seed=seed,
+        gamma=gamma,
+        policy=None,
+        policy_kind=EPSILON_GREEDY,
+        epsilon=eps,
+        exploring_starts=bool(exploring_starts),
+        first_visit=bool(first_visit),
+        alpha=a,
+        weighted=False,
+        target=None,
+        truth_kind="control",
+        truth_policy=None,
+        error_on="q",
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        start=start,
+        progress=progress,
+        model=model,
+        params={
+            "exploring_starts": bool(exploring_starts),
+            "epsilon": str(eps),
+            "alpha": str(a),
+            "first_visit": bool(first_visit),
+        },
+    )
+
+
+def mc_off_policy(
+    problem: FiniteMDP | Any,
+    target: Policy | None = None,
+    *,
+    behavior: Policy | Callable[[Any], Any] | None = None,
+    epsilon: Schedule | float | str | None = None,
+    weighted: bool = False,
+    episodes: int = 100_000,
+    first_visit: bool = False,
+    gamma: float | None = None,
+    seed: Seed = None,
+    checkpoints: int = 50,
+    error_on: Literal["v", "q"] = "q",
+    max_steps: int = 10_000,
+    start: Hashable | None = None,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
+) -> LearnResult:
+    """Off-policy Monte Carlo by importance sampling, ordinary or weighted.
+
+    Episodes come from a behaviour policy b; returns are reweighted by the importance
+    sampling ratio rho_{t:T-1} = prod_k pi(A_k | S_k) / b(A_k | S_k). Ordinary IS
+    averages rho G over all visits (unbiased, possibly huge variance); weighted IS
+    divides by the sum of the ratios instead (biased, consistent, low variance).
+
+    * Prediction (``target`` given): estimates v_pi and q_pi of the target policy.
+    * Control (``target=None``): the target is the greedy policy of Q, improved as Q
+      is updated (Sutton & Barto section 5.7); the error is against q*.
+
+    Args:
+        problem: A FiniteMDP (compiled path) or a Gymnasium env / id (Python loop).
+        target: The policy to evaluate, or None for control.
+        behavior: The behaviour policy b (default: equiprobable random); it must give
+            every action the target may take a positive probability (coverage).
+        epsilon: For control only: behave epsilon-greedily in the current Q with this
+            schedule instead of with a fixed b.
+        weighted: Weighted (True) or ordinary (False) importance sampling.
+        episodes: Number of episodes.
+        first_visit: First-visit (True) or every-visit (False, the book's choice).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        checkpoints: About how many points of the error curve (log-spaced).
+        error_on: For prediction: score Q (``"q"``) or V (``"v"``).
+        max_steps: Step limit of an episode; truncated episodes are not used.
+        start: Optional start state label (FiniteMDP only).
+        model: The exact FiniteMDP behind an env (for the error curve).
+        progress: Show a progress bar.
+
+    Returns:
+        The :class:`LearnResult`.
+    """
+    from policylab.mdp.policy import Policy
+
+    if target is not None and not isinstance(target, Policy):
+        raise InvalidPolicyError(
+            f"target must be a policylab Policy or None; got {type(target).__name__}"
+        )
+    if target is not None and epsilon is not None:
+        raise InvalidArgumentError(
+            "epsilon (an epsilon-greedy behaviour) is for control; give behavior= instead"
+        )
+    policy_kind = FIXED_POLICY
+    eps = Schedule.constant(0.0)
+    gen_policy: Any = None
+    if epsilon is not None:
+        policy_kind = EPSILON_GREEDY
+        eps = as_schedule(epsilon, Schedule.inverse(), "epsilon").check_range(0.0, 1.0, "epsilon")
+        if eps.kind == 0 and eps.a == 0.0:
+            raise InvalidArgumentError("an epsilon-greedy behaviour needs epsilon > 0 (coverage)")
+    else:
+        gen_policy, _ = _fixed_policy(problem, behavior, model, "mc_off_policy behavior")
+        if target is not None and isinstance(gen_policy, Policy):
+            _check_coverage(target, gen_policy)
+        elif target is None and isinstance(gen_policy, Policy):
+            _check_soft(gen_policy)
+    return _run(
+        "mc-off-policy",
+        problem,
+        kind=IS_PREDICTION if target is not None else IS_CONTROL,
+        episodes=episodes,
+        seed=seed,
+        gamma=gamma,
+        policy=gen_policy,
+        policy_kind=policy_kind,
+        epsilon=eps,
+        exploring_starts=False,
+        first_visit=bool(first_visit),
+        alpha=Schedule.inverse(),
+        weighted=bool(weighted),
+        target=target,
+        truth_kind="prediction" if target is not None else "control",
+        truth_policy=target,
+        error_on=error_on if target is not None else "q",
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        start=start,
+        progress=progress,
+        model=model,
+        params={
+            "weighted": bool(weighted),
+            "first_visit": bool(first_visit),
+            "target": "greedy" if target is None else "given",
+            "behavior": f"epsilon-greedy {eps}" if epsilon is not None else "fixed",
+        },
+    )
+
+
+def _check_coverage(target: Policy, behavior: Policy) -> None:
+    bad = (target.probs > 0) & (behavior.probs <= 0)
+    if np.any(bad):
+        s, a = map(int, np.argwhere(bad)[0])
+        raise InvalidPolicyError(
+            f"coverage fails: the target takes action {target.actions[a]!r} in state "
+            f"{target.states[s]!r} but the behaviour policy never does; b(a | s) must be > 0 "
+            "wherever pi(a | s) > 0"
+        )
+
+
+def _check_soft(behavior: Policy) -> None:
+    bad = behavior.mask & (behavior.probs <= 0)
+    if np.any(bad):
+        s, a = map(int, np.argwhere(bad)[0])
+        raise InvalidPolicyError(
+            f"off-policy control needs a soft behaviour policy (b(a | s) > 0 for every available "
+            f"action); b({behavior.actions[a]!r} | {behavior.states[s]!r}) = 0"
+        )

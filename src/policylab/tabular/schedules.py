@@ -1,0 +1,234 @@
+"""Step-size and exploration schedules, usable from Python and inside numba kernels.
+
+A schedule maps a count n = 1, 2, 3, ... (the n-th visit of a pair, the n-th episode)
+to a value: a step size alpha_n or an exploration rate epsilon_n. It is encoded as a
+small float64 array ``params = [kind, a, b, c]`` so that compiled kernels evaluate it
+with the one function :func:`schedule_value`; :class:`Schedule` is the Python face of
+the same array (calling it runs the same compiled function).
+
+Kinds (n counts from 1):
+
+=============  ==================================================  =====================
+kind           value at n                                          built by
+=============  ==================================================  =====================
+constant       a                                                   ``Schedule.constant``
+inverse        max(a / n**b, c)   (a = 1, b = 1, c = 0: 1/n)       ``Schedule.inverse``
+exponential    max(a * b**(n - 1), c)                              ``Schedule.exponential``
+linear         a + (c - a) * min(1, (n - 1) / b)   (a -> c in b)   ``Schedule.linear``
+=============  ==================================================  =====================
+
+The step size 1/n makes an incremental update the exact sample average (the notes'
+"summation of rewards upon the number of times"); epsilon_k = 1/k over episodes is
+GLIE (greedy in the limit with infinite exploration).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numba as nb
+import numpy as np
+
+from policylab.exceptions import InvalidArgumentError
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
+__all__ = [
+    "CONSTANT",
+    "EXPONENTIAL",
+    "INVERSE",
+    "LINEAR",
+    "Schedule",
+    "as_schedule",
+    "schedule_value",
+]
+
+CONSTANT, INVERSE, EXPONENTIAL, LINEAR = 0, 1, 2, 3
+_KIND_NAMES = {
+    CONSTANT: "constant",
+    INVERSE: "inverse",
+    EXPONENTIAL: "exponential",
+    LINEAR: "linear",
+}
+
+
+@nb.njit(cache=True, nogil=True)
+def schedule_value(params: NDArray[np.float64], n: float) -> float:  # pragma: no cover - compiled
+    """The value of the schedule ``params = [kind, a, b, c]`` at count ``n >= 1``.
+
+    constant: a; inverse: max(a / n**b, c); exponential: max(a * b**(n-1), c);
+    linear: a + (c - a) * min(1, (n - 1) / b).
+    """
+    kind = int(params[0])
+    a, b, c = params[1], params[2], params[3]
+    if n < 1.0:
+        n = 1.0
+    if kind == 0:
+        return float(a)
+    if kind == 1:
+        return float(max(a / n**b, c))
+    if kind == 2:
+        return float(max(a * b ** (n - 1.0), c))
+    frac = (n - 1.0) / b
+    if frac > 1.0:
+        frac = 1.0
+    return float(a + (c - a) * frac)
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """A schedule n -> value (step size or exploration rate); see the module docstring.
+
+    Build one with :meth:`constant`, :meth:`inverse`, :meth:`exponential`,
+    :meth:`linear` or :meth:`parse`; ``schedule(n)`` gives its value, ``params`` the
+    float64 array a numba kernel reads with :func:`schedule_value`.
+    """
+
+    kind: int
+    a: float
+    b: float = 0.0
+    c: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("a", "b", "c"):
+            x = getattr(self, name)
+            if not isinstance(x, (int, float, np.floating, np.integer)) or not math.isfinite(
+                float(x)
+            ):
+                raise InvalidArgumentError(
+                    f"schedule parameter {name} must be a finite number; got {x!r}"
+                )
+            object.__setattr__(self, name, float(x))
+        if self.kind not in _KIND_NAMES:
+            raise InvalidArgumentError(
+                f"schedule kind must be one of {sorted(_KIND_NAMES)}; got {self.kind!r}"
+            )
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def constant(cls, value: float) -> Schedule:
+        """The same value at every n (a constant step size alpha, a fixed epsilon)."""
+        return cls(CONSTANT, _number(value, "constant value"))
+
+    @classmethod
+    def inverse(cls, scale: float = 1.0, power: float = 1.0, floor: float = 0.0) -> Schedule:
+        """max(scale / n**power, floor): with the defaults, 1/n (sample average; GLIE)."""
+        if not power > 0.0:
+            raise InvalidArgumentError(
+                f"inverse schedule power must be > 0 (in (0.5, 1] for step sizes that converge); "
+                f"got {power!r}"
+            )
+        return cls(INVERSE, _number(scale, "scale"), float(power), _number(floor, "floor"))
+
+    @classmethod
+    def exponential(cls, start: float, decay: float, floor: float = 0.0) -> Schedule:
+        """max(start * decay**(n - 1), floor), with 0 < decay <= 1."""
+        if not 0.0 < decay <= 1.0:
+            raise InvalidArgumentError(f"exponential decay must lie in (0, 1]; got {decay!r}")
+        return cls(EXPONENTIAL, _number(start, "start"), float(decay), _number(floor, "floor"))
+
+    @classmethod
+    def linear(cls, start: float, end: float, steps: float) -> Schedule:
+        """From ``start`` at n = 1 straight to ``end`` at n = 1 + steps, then ``end``."""
+        if not steps > 0:
+            raise InvalidArgumentError(f"linear schedule steps must be > 0; got {steps!r}")
+        return cls(LINEAR, _number(start, "start"), float(steps), _number(end, "end"))
+
+    @classmethod
+    def parse(cls, text: str) -> Schedule:
+        """A schedule from its command-line spelling.
+
+        ``0.1`` or ``const:0.1`` (constant), ``1/n`` or ``inverse`` or
+        ``inverse:SCALE,POWER,FLOOR``, ``exp:START,DECAY[,FLOOR]``,
+        ``linear:START,END,STEPS``.
+
+        Raises:
+            InvalidArgumentError: If the text is none of these.
+        """
+        t = str(text).strip().lower().replace(" ", "")
+        try:
+            if re.fullmatch(r"[-+0-9.e]+", t):
+                return cls.constant(float(t))
+            if t in ("1/n", "1/k", "inverse", "glie"):
+                return cls.inverse()
+            kind, _, rest = t.partition(":")
+            nums = [float(x) for x in rest.split(",")] if rest else []
+            if kind in ("const", "constant") and len(nums) == 1:
+                return cls.constant(nums[0])
+            if kind in ("inverse", "inv") and 1 <= len(nums) <= 3:
+                return cls.inverse(*nums)
+            if kind in ("exp", "exponential") and 2 <= len(nums) <= 3:
+                return cls.exponential(*nums)
+            if kind in ("linear", "lin") and len(nums) == 3:
+                return cls.linear(*nums)
+        except ValueError:
+            pass
+        raise InvalidArgumentError(
+            f"cannot read schedule {text!r}; expected a number (constant), '1/n', "
+            "'inverse:SCALE,POWER,FLOOR', 'exp:START,DECAY[,FLOOR]' or 'linear:START,END,STEPS'"
+        )
+
+    # ------------------------------------------------------------------ use
+    @property
+    def params(self) -> NDArray[np.float64]:
+        """The ``[kind, a, b, c]`` float64 array that kernels evaluate."""
+        return np.array([float(self.kind), self.a, self.b, self.c], dtype=np.float64)
+
+    def __call__(self, n: float) -> float:
+        """The value at count ``n`` (n >= 1; smaller n count as 1)."""
+        return float(schedule_value(self.params, float(n)))
+
+    def values(self, n: int) -> NDArray[np.float64]:
+        """The values at 1, 2, ..., n (for plots and checks)."""
+        p = self.params
+        return np.array([schedule_value(p, float(k)) for k in range(1, n + 1)])
+
+    def check_range(self, lo: float, hi: float, what: str) -> Schedule:
+        """Raise unless every value lies in [lo, hi] (e.g. epsilon in [0, 1])."""
+        bounds = [self.a] if self.kind == CONSTANT else [self.a, self.c]
+        for x in bounds:
+            if not lo <= x <= hi:
+                raise InvalidArgumentError(
+                    f"{what} must stay in [{lo:g}, {hi:g}]; schedule {self} reaches {x:g}"
+                )
+        return self
+
+    def __str__(self) -> str:
+        if self.kind == CONSTANT:
+            return f"{self.a:g}"
+        if self.kind == INVERSE:
+            if self.a == 1.0 and self.b == 1.0 and self.c == 0.0:
+                return "1/n"
+            return f"inverse:{self.a:g},{self.b:g},{self.c:g}"
+        if self.kind == EXPONENTIAL:
+            return f"exp:{self.a:g},{self.b:g},{self.c:g}"
+        return f"linear:{self.a:g},{self.c:g},{self.b:g}"
+
+
+def as_schedule(x: Schedule | float | str | None, default: Schedule, what: str) -> Schedule:
+    """A :class:`Schedule` from a schedule, a number (constant), a string, or None (default)."""
+    if x is None:
+        return default
+    if isinstance(x, Schedule):
+        return x
+    if isinstance(x, str):
+        return Schedule.parse(x)
+    if isinstance(x, (int, float, np.floating, np.integer)) and not isinstance(x, bool):
+        return Schedule.constant(float(x))
+    raise InvalidArgumentError(
+        f"{what} must be a number, a Schedule or a schedule string; got {x!r}"
+    )
+
+
+def _number(x: object, what: str) -> float:
+    try:
+        v = float(x)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(f"schedule {what} must be a number; got {x!r}") from None
+    if not math.isfinite(v):
+        raise InvalidArgumentError(f"schedule {what} must be finite; got {x!r}")
+    return v

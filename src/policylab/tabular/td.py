@@ -1,0 +1,810 @@
+"""Temporal-difference learning (Sutton & Barto chapters 6, 7, 8 and 12).
+
+TD methods update an estimate from the next reward and the current estimate of the
+next state (they bootstrap), one step at a time, without waiting for the episode's end:
+
+* prediction of v_pi: :func:`td0`, :func:`n_step_td`, :func:`td_lambda`;
+* control: :func:`sarsa`, :func:`q_learning`, :func:`expected_sarsa`,
+  :func:`double_q_learning`, :func:`n_step_sarsa`, :func:`sarsa_lambda`,
+  :func:`dyna_q` (planning from a learned model).
+
+Each learner takes a :class:`~policylab.FiniteMDP` (compiled numba kernels) or a
+Gymnasium env with ``Discrete`` observations and actions (the same kernel source run
+as plain Python, see :mod:`policylab.tabular.td_kernels`), and returns a
+:class:`~policylab.tabular.LearnResult` whose error curve is held against the exact
+v_pi (prediction) or q* (control) where the model is known. :func:`run_seeds` runs
+one learner for many seeds at once (the studies of Figures 6.2-6.5).
+
+Example::
+
+    import policylab as pl
+    res = pl.tabular.q_learning(pl.problems.cliff_walking(), episodes=500, alpha=0.5,
+                                epsilon=0.1, seed=0)
+    res.episode_returns[-10:], res.to_policy()
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Hashable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
+from policylab.tabular import td_kernels as K
+from policylab.tabular.common import (
+    Recorder,
+    StateIndex,
+    check_episodes,
+    check_gamma,
+    checkpoint_episodes,
+    is_finite_mdp,
+    progress_bar,
+)
+from policylab.tabular.kernels import KernelMDP, rng_states
+from policylab.tabular.registry import Option, register_algorithm
+from policylab.tabular.result import LearnResult
+from policylab.tabular.schedules import Schedule, as_schedule
+from policylab.tabular.truth import GroundTruth, greedy_probs
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
+    from policylab.mdp.finite import FiniteMDP
+    from policylab.mdp.policy import Policy
+
+__all__ = [
+    "SeedRuns",
+    "double_q_learning",
+    "dyna_q",
+    "expected_sarsa",
+    "n_step_sarsa",
+    "n_step_td",
+    "q_learning",
+    "run_seeds",
+    "sarsa",
+    "sarsa_lambda",
+    "td0",
+    "td_lambda",
+]
+
+Seed = int | np.random.Generator | None
+Trace = Literal["accumulating", "replacing"]
+
+_DEFAULT_ALPHA_PREDICTION = 0.1
+_DEFAULT_ALPHA_CONTROL = 0.1
+_DEFAULT_EPSILON = 0.1
+
+
+# =============================================================================== the problem
+@dataclass
+class _Problem:
+    """A learner's problem, resolved: the model (if known) and the env (general path)."""
+
+    mdp: FiniteMDP | None
+    env: Any | None
+    index: StateIndex | None
+    n_states: int
+    n_actions: int
+    mask: NDArray[np.bool_]
+    states: tuple[Hashable, ...]
+    actions: tuple[Hashable, ...]
+    terminal: NDArray[np.bool_]
+    name: str
+
+
+def _resolve(problem: Any, model: FiniteMDP | None) -> _Problem:
+    """The FiniteMDP (compiled path) or the Gymnasium env (general path) of ``problem``."""
+    if is_finite_mdp(problem):
+        mdp: FiniteMDP = problem
+        return _Problem(
+            mdp, None, None, mdp.n_states, mdp.n_actions,
+            np.ascontiguousarray(mdp.action_mask, dtype=np.bool_), mdp.states, mdp.actions,
+            np.asarray(mdp.terminal, dtype=bool), mdp.name,
+        )
+    import gymnasium as gym
+    from gymnasium import spaces
+
+    env = gym.make(problem) if isinstance(problem, str) else problem
+    if not hasattr(env, "reset") or not hasattr(env, "step"):
+        raise InvalidArgumentError(f"problem must be a FiniteMDP or a Gymnasium env; got {type(problem).__name__}")
+    if not isinstance(env.action_space, spaces.Discrete):
+        raise InvalidArgumentError(f"TD learners need a Discrete action space; got {env.action_space}")
+    if not isinstance(env.observation_space, spaces.Discrete) or int(env.observation_space.start) != 0:
+        raise InvalidArgumentError(
+            f"TD learners need Discrete(n) observations numbered from 0; got {env.observation_space} "
+            "(wrap the env so that it emits state indices)"
+        )
+    base = getattr(env, "unwrapped", env)
+    mdp = model if model is not None else getattr(base, "mdp", None)
+    if mdp is None and getattr(base, "P", None) is not None:
+        from policylab.mdp.finite import FiniteMDP as _F
+
+        mdp = _F.from_gymnasium(base, name=_env_name(env))
+    S, A = int(env.observation_space.n), int(env.action_space.n)
+    spec = getattr(env, "spec", None)
+    name = _env_name(env)
+    if mdp is not None:
+        if (mdp.n_states, mdp.n_actions) != (S, A):
+            raise InvalidArgumentError(
+                f"the model {mdp.name!r} has {mdp.n_states} states and {mdp.n_actions} actions; the "
+                f"env {name!r} has {S} and {A}"
+            )
+        return _Problem(
+            mdp, env, StateIndex.discrete(S), S, A,
+            np.ascontiguousarray(mdp.action_mask, dtype=np.bool_), mdp.states, mdp.actions,
+            np.asarray(mdp.terminal, dtype=bool), name,
+        )
+    del spec
+    return _Problem(
+        None, env, StateIndex.discrete(S), S, A, np.ones((S, A), dtype=np.bool_),
+        tuple(range(S)), tuple(range(A)), np.zeros(S, dtype=bool), name,
+    )
+
+
+def _env_name(env: Any) -> str:
+    spec = getattr(env, "spec", None)
+    return str(getattr(spec, "id", None) or type(getattr(env, "unwrapped", env)).__name__)
+
+
+def _policy_table(P: _Problem, policy: Policy | Any | None) -> tuple[NDArray[np.float64], Policy | None]:
+    """pi as an (S, A) table for a prediction kernel, and the Policy for the exact v_pi."""
+    from policylab.mdp.policy import Policy
+
+    if policy is None:
+        if P.mdp is not None:
+            pol = Policy.uniform(P.mdp)
+            return np.ascontiguousarray(pol.probs), pol
+        return np.full((P.n_states, P.n_actions), 1.0 / P.n_actions), None
+    if isinstance(policy, Policy):
+        if P.mdp is not None and (policy.states != P.mdp.states or policy.actions != P.mdp.actions):
+            raise InvalidPolicyError(
+                f"the policy's states/actions do not match the problem {P.name!r}"
+            )
+        return np.ascontiguousarray(policy.probs, dtype=np.float64), policy
+    try:
+        table = np.asarray(policy, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidPolicyError(
+            f"policy must be a Policy or an (S, A) array of probabilities; got {type(policy).__name__}"
+        ) from None
+    if P.mdp is not None:
+        pol = Policy.from_array(P.mdp, table)
+        return np.ascontiguousarray(pol.probs), pol
+    if table.shape != (P.n_states, P.n_actions) or np.any(table < 0) or not np.allclose(table.sum(axis=1), 1.0):
+        raise InvalidPolicyError(
+            f"policy must be an ({P.n_states}, {P.n_actions}) array whose rows sum to 1; got shape {table.shape}"
+        )
+    return np.ascontiguousarray(table), None
+
+
+# =============================================================================== one run
+@dataclass(frozen=True)
+class _Algo:
+    """Which kernel a learner runs, with its fixed settings."""
+
+    name: str
+    family: Literal["td0", "one_step", "n_step", "lambda", "dyna"]
+    control: bool
+    rule: int = 0
+    n: int = 1
+    lam: float = 0.0
+    trace: int = K.TRACE_ACCUMULATING
+    planning: int = 0
+
+
+@dataclass
+class _Run:
+    """The tables of one run and the call of its kernel on either path."""
+
+    algo: _Algo
+    P: _Problem
+    pi: NDArray[np.float64]
+    gamma: float
+    alpha: Schedule
+    epsilon: Schedule
+    max_steps: int
+    rng: NDArray[np.uint64]
+    env: Any
+    w: NDArray[np.float64]
+    episodes: int
+    q2: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
+    counts: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    returns: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    lengths: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    first_actions: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    model_next: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 0), dtype=np.int64))
+    model_reward: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
+    seen: NDArray[np.int64] = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
+
+    @classmethod
+    def start(
+        cls, algo: _Algo, P: _Problem, pi: NDArray[np.float64], *, gamma: float, alpha: Schedule,
+        epsilon: Schedule, max_steps: int, rng: NDArray[np.uint64], env_seed: int,
+        episodes: int, init: float,
+    ) -> _Run:
+        S, A = P.n_states, P.n_actions
+        cols = A if algo.control else 1
+        w = np.full((S, cols), float(init))
+        w[P.terminal] = 0.0
+        if P.env is None:
+            assert P.mdp is not None  # the compiled path always has a model
+            env: Any = K.model_tuple(KernelMDP.of(P.mdp, gamma))
+        else:
+            env = K.GymStepper(P.env, P.index, env_seed)
+        run = cls(algo, P, pi, gamma, alpha, epsilon, max_steps, rng, env, w, episodes)
+        run.counts = np.zeros((S, cols), dtype=np.int64)
+        run.returns = np.zeros(episodes)
+        run.lengths = np.zeros(episodes, dtype=np.int64)
+        run.first_actions = np.full(episodes, -1, dtype=np.int64)
+        if algo.rule == K.DOUBLE_Q:
+            run.q2 = w.copy()
+        if algo.family == "dyna":
+            run.model_next = np.full((S, A), -1, dtype=np.int64)
+            run.model_reward = np.zeros((S, A))
+            run.seen = np.zeros(S * A + 1, dtype=np.int64)
+        return run
+
+    def __call__(self, k0: int, k1: int) -> int:
+        """Run episodes k0 .. k1 - 1; return the environment steps taken."""
+        a, P = self.algo, self.P
+        compiled = P.env is None
+
+        def kernel(fn: Any) -> Any:
+            return fn if compiled else fn.py_func
+
+        ap, ep = self.alpha.params, self.epsilon.params
+        if a.family == "td0":
+            return int(kernel(K.td0_kernel)(
+                self.env, self.pi, self.w[:, 0], k0, k1, self.gamma, ap, self.max_steps, self.rng,
+                self.counts[:, 0], self.returns, self.lengths,
+            ))
+        if a.family == "one_step":
+            q2 = self.q2 if a.rule == K.DOUBLE_Q else self.w
+            return int(kernel(K.one_step_control_kernel)(
+                self.env, P.mask, self.w, q2, a.rule, k0, k1, self.gamma, ap, ep, self.max_steps,
+                self.rng, self.counts, self.returns, self.lengths, self.first_actions,
+            ))
+        if a.family == "n_step":
+            return int(kernel(K.n_step_kernel)(
+                self.env, P.mask, self.pi, self.w, a.control, a.n, k0, k1, self.gamma, ap, ep,
+                self.max_steps, self.rng, self.counts, self.returns, self.lengths,
+            ))
+        if a.family == "lambda":
+            return int(kernel(K.lambda_kernel)(
+                self.env, P.mask, self.pi, self.w, a.control, a.lam, a.trace, k0, k1, self.gamma,
+                ap, ep, self.max_steps, self.rng, self.counts, self.returns, self.lengths,
+            ))
+        return int(kernel(K.dyna_q_kernel)(
+            self.env, P.mask, self.w, a.planning, k0, k1, self.gamma, ap, ep, self.max_steps,
+            self.rng, self.counts, self.returns, self.lengths, self.model_next, self.model_reward,
+            self.seen,
+        ))
+
+    @property
+    def q(self) -> NDArray[np.float64]:
+        """Q (S, A): the control table (Q1 + Q2 averaged for Double Q); zeros for prediction."""
+        if not self.algo.control:
+            return np.zeros((self.P.n_states, self.P.n_actions))
+        q = (self.w + self.q2) / 2.0 if self.algo.rule == K.DOUBLE_Q else self.w.copy()
+        return np.where(self.P.mask, q, 0.0)
+
+    @property
+    def v(self) -> NDArray[np.float64]:
+        """V (S,): the learned V (prediction) or max_a Q(s, a) over A(s) (control)."""
+        if not self.algo.control:
+            v = self.w[:, 0].copy()
+        else:
+            qm = np.where(self.P.mask, self.q, -np.inf)
+            v = np.where(self.P.mask.any(axis=1), qm.max(axis=1), 0.0)
+        v[self.P.terminal] = 0.0
+        return v
+
+
+def _prepare(
+    algo: _Algo, problem: Any, policy: Any, *, model: FiniteMDP | None, episodes: int,
+    gamma: float | None, alpha: Schedule | float | str | None, epsilon: Schedule | float | str | None,
+    max_steps: int,
+) -> tuple[_Problem, NDArray[np.float64], Policy | None, float, Schedule, Schedule, int, int]:
+    """Checked arguments shared by :func:`_learn` and :func:`run_seeds`."""
+    episodes = check_episodes(episodes)
+    max_steps = check_episodes(max_steps, "max_steps")
+    P = _resolve(problem, model)
+    g = check_gamma(gamma, P.mdp.gamma if P.mdp is not None else 1.0)
+    default_alpha = _DEFAULT_ALPHA_CONTROL if algo.control else _DEFAULT_ALPHA_PREDICTION
+    a = as_schedule(alpha, Schedule.constant(default_alpha), "alpha").check_range(0.0, 1.0, "alpha")
+    e = as_schedule(epsilon, Schedule.constant(_DEFAULT_EPSILON), "epsilon").check_range(0.0, 1.0, "epsilon")
+    if algo.control:
+        if policy is not None:
+            raise InvalidArgumentError(f"{algo.name} is a control method; it takes no policy")
+        pi, truth_policy = np.zeros((P.n_states, P.n_actions)), None
+    else:
+        pi, truth_policy = _policy_table(P, policy)
+    return P, pi, truth_policy, g, a, e, episodes, max_steps
+
+
+def _learn(
+    algo: _Algo, problem: Any, policy: Any = None, *, episodes: int, seed: Seed,
+    gamma: float | None, alpha: Schedule | float | str | None, epsilon: Schedule | float | str | None = None,
+    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000, model: FiniteMDP | None = None,
+    progress: bool = False, params: dict[str, Any] | None = None,
+) -> LearnResult:
+    """The body every TD learner shares: checks, ground truth, chunks, result."""
+    P, pi, truth_policy, g, a, e, episodes, max_steps = _prepare(
+        algo, problem, policy, model=model, episodes=episodes, gamma=gamma, alpha=alpha,
+        epsilon=epsilon, max_steps=max_steps,
+    )
+    truth: GroundTruth | None = None
+    if P.mdp is not None:
+        if algo.control:
+            truth = GroundTruth.control(P.mdp, on="q", gamma=g)
+        elif truth_policy is not None:
+            truth = GroundTruth.prediction(P.mdp, truth_policy, on="v", gamma=g)
+    rec = Recorder(truth, checkpoint_episodes(episodes, checkpoints))
+    gen = np.random.default_rng(seed)
+    rng = rng_states(gen, 1)[0]
+    env_seed = int(gen.integers(2**31 - 1))
+    run = _Run.start(
+        algo, P, pi, gamma=g, alpha=a, epsilon=e, max_steps=max_steps, rng=rng, env_seed=env_seed,
+        episodes=episodes, init=init,
+    )
+    steps = 0
+    t0 = time.perf_counter()
+    with progress_bar(progress, episodes, algo.name) as advance:
+        for k0, k1 in rec.chunks():
+            steps += run(k0, k1)
+            rec.record(run.q if algo.control else None, run.v)
+            advance(k1 - k0)
+    seconds = time.perf_counter() - t0
+    counts = run.counts if algo.control else np.repeat(run.counts, P.n_actions, axis=1) * P.mask
+    pol = greedy_probs(run.q, P.mask) if algo.control else pi.copy()
+    return LearnResult(
+        algorithm=algo.name,
+        problem=P.name,
+        states=P.states,
+        actions=P.actions,
+        q=run.q,
+        v=run.v,
+        policy=pol,
+        terminal=P.terminal,
+        action_mask=P.mask,
+        counts=counts.astype(np.float64),
+        episodes=episodes,
+        steps=int(steps),
+        seconds=seconds,
+        episode_returns=run.returns,
+        truncated=int(np.sum(run.lengths >= max_steps)),
+        params={
+            **(params or {}),
+            "alpha": str(a),
+            **({"epsilon": str(e)} if algo.control else {}),
+            "gamma": g,
+            "seed": seed if isinstance(seed, int | np.integer) else None,
+            "path": "compiled" if P.env is None else "gymnasium",
+            "first_actions": run.first_actions if algo.family == "one_step" else None,
+        },
+        mdp=P.mdp,
+        **rec.arrays(),
+    )
+
+
+# =============================================================================== many seeds
+@dataclass
+class SeedRuns:
+    """One learner run for many seeds (independent runs), as arrays with a leading run axis.
+
+    Attributes:
+        algorithm: The learner's registry name.
+        problem: The problem's name.
+        seeds: Number of runs R.
+        returns: (R, episodes) the return G_0 of every episode of every run.
+        lengths: (R, episodes) the steps of every episode.
+        q: (R, S, A) the final Q of each run (zeros for prediction).
+        v: (R, S) the final V of each run.
+        first_actions: (R, episodes) A_0 of every episode (one-step control), else None.
+        steps: Environment steps over all runs.
+        seconds: Wall-clock time of the runs.
+    """
+
+    algorithm: str
+    problem: str
+    seeds: int
+    returns: NDArray[np.float64]
+    lengths: NDArray[np.int64]
+    q: NDArray[np.float64]
+    v: NDArray[np.float64]
+    first_actions: NDArray[np.int64] | None
+    steps: int
+    seconds: float
+
+    def mean_return(self, first: int = 0, last: int | None = None) -> float:
+        """Mean return per episode over episodes ``first .. last - 1`` and all runs."""
+        return float(self.returns[:, first:last].mean())
+
+
+def run_seeds(
+    algorithm: str, problem: FiniteMDP | Any, seeds: int = 100, *, seed: Seed = 0,
+    episodes: int = 500, policy: Any = None, progress: bool = False, **options: Any,
+) -> SeedRuns:
+    """Run a TD learner ``seeds`` times independently (the many-seed studies of the book).
+
+    On a FiniteMDP every run is one call of the compiled kernel; run r uses the r-th
+    RNG state of ``rng_states(seed, seeds)``, so the study is reproducible.
+
+    Args:
+        algorithm: A TD algorithm's registry name (``"sarsa"``, ``"q-learning"``, ...).
+        problem: A FiniteMDP or a Gymnasium env with discrete observations.
+        seeds: Number of independent runs.
+        seed: Seed of the whole study.
+        episodes: Episodes per run.
+        policy: The policy evaluated (prediction methods).
+        progress: Show a progress bar over runs.
+        **options: The learner's own keyword arguments (``alpha``, ``epsilon``, ``n``,
+            ``lam``, ``trace``, ``planning_steps``, ``gamma``, ``max_steps``, ``init``, ...).
+
+    Returns:
+        A :class:`SeedRuns`.
+    """
+    name = algorithm.strip().lower().replace("_", "-")
+    if name not in _ALGOS:
+        raise InvalidArgumentError(f"unknown TD algorithm {algorithm!r}; known: {', '.join(sorted(_ALGOS))}")
+    n_runs = check_episodes(seeds, "seeds")
+    opts = dict(options)
+    algo = _ALGOS[name](opts)
+    init = float(opts.pop("init", 0.0))
+    gamma, alpha, epsilon = opts.pop("gamma", None), opts.pop("alpha", None), opts.pop("epsilon", None)
+    max_steps = int(opts.pop("max_steps", 10_000))
+    model = opts.pop("model", None)
+    if opts:
+        raise InvalidArgumentError(f"{name}: unknown options {sorted(opts)}")
+    P, pi, _, g, a, e, episodes, max_steps = _prepare(
+        algo, problem, policy, model=model, episodes=episodes, gamma=gamma, alpha=alpha,
+        epsilon=epsilon, max_steps=max_steps,
+    )
+    gen = np.random.default_rng(seed)
+    states = rng_states(gen, n_runs)
+    env_seeds = gen.integers(2**31 - 1, size=n_runs)
+    S, A = P.n_states, P.n_actions
+    out_r = np.zeros((n_runs, episodes))
+    out_l = np.zeros((n_runs, episodes), dtype=np.int64)
+    out_q = np.zeros((n_runs, S, A))
+    out_v = np.zeros((n_runs, S))
+    out_f = np.zeros((n_runs, episodes), dtype=np.int64)
+    steps = 0
+    t0 = time.perf_counter()
+    with progress_bar(progress, n_runs, f"{name} x {n_runs} seeds") as advance:
+        for r in range(n_runs):
+            run = _Run.start(
+                algo, P, pi, gamma=g, alpha=a, epsilon=e, max_steps=max_steps, rng=states[r],
+                env_seed=int(env_seeds[r]), episodes=episodes, init=init,
+            )
+            steps += run(0, episodes)
+            out_r[r], out_l[r], out_q[r], out_v[r], out_f[r] = (
+                run.returns, run.lengths, run.q, run.v, run.first_actions,
+            )
+            advance(1)
+    return SeedRuns(
+        name, P.name, n_runs, out_r, out_l, out_q, out_v,
+        out_f if algo.family == "one_step" else None, int(steps), time.perf_counter() - t0,
+    )
+
+
+# =============================================================================== learners
+def _check_n(n: Any) -> int:
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+        raise InvalidArgumentError(f"n (the number of steps) must be a positive integer; got {n!r}")
+    return int(n)
+
+
+def _check_lambda(lam: Any) -> float:
+    try:
+        x = float(lam)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(f"lambda must be a number in [0, 1]; got {lam!r}") from None
+    if not 0.0 <= x <= 1.0:
+        raise InvalidArgumentError(f"lambda must be in [0, 1]; got {lam!r}")
+    return x
+
+
+def _check_trace(trace: Any) -> int:
+    kinds = {"accumulating": K.TRACE_ACCUMULATING, "replacing": K.TRACE_REPLACING}
+    if trace not in kinds:
+        raise InvalidArgumentError(f"trace must be 'accumulating' or 'replacing'; got {trace!r}")
+    return kinds[trace]
+
+
+def _check_planning(k: Any) -> int:
+    if isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 0:
+        raise InvalidArgumentError(f"planning_steps must be an integer >= 0; got {k!r}")
+    return int(k)
+
+
+def td0(
+    problem: FiniteMDP | Any, policy: Policy | Any = None, *, episodes: int = 100,
+    alpha: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
+    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
+    model: FiniteMDP | None = None, progress: bool = False,
+) -> LearnResult:
+    """Tabular TD(0) prediction of v_pi (S&B section 6.1).
+
+    V(S_t) <- V(S_t) + alpha [R_{t+1} + gamma V(S_{t+1}) - V(S_t)] after every step.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array
+            (default: the equiprobable random policy).
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the state's update count or
+            a schedule string (``"1/n"``, ``"exp:0.5,0.999,0.01"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal V(s) (0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against v_pi.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult` with ``v`` (``q`` is zero: TD(0) learns V only) and the
+        error of V against the exact v_pi where the model is known.
+    """
+    return _learn(
+        _Algo("td0", "td0", False), problem, policy, episodes=episodes, seed=seed, gamma=gamma,
+        alpha=alpha, init=init, checkpoints=checkpoints, max_steps=max_steps, model=model,
+        progress=progress,
+    )
+
+
+def n_step_td(
+    problem: FiniteMDP | Any, policy: Policy | Any = None, *, n: int = 4, episodes: int = 100,
+    alpha: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
+    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
+    model: FiniteMDP | None = None, progress: bool = False,
+) -> LearnResult:
+    """n-step TD prediction of v_pi (S&B section 7.1).
+
+    V(S_tau) <- V(S_tau) + alpha [G_{tau:tau+n} - V(S_tau)] with the n-step return
+    G_{tau:tau+n} = R_{tau+1} + gamma R_{tau+2} + ... + gamma^{n-1} R_{tau+n} +
+    gamma^n V(S_{tau+n}) (no bootstrap past the episode's end). n = 1 is TD(0).
+    Arguments as :func:`td0`, plus ``n``.
+    """
+    return _learn(
+        _Algo("n-step-td", "n_step", False, n=_check_n(n)), problem, policy, episodes=episodes,
+        seed=seed, gamma=gamma, alpha=alpha, init=init, checkpoints=checkpoints,
+        max_steps=max_steps, model=model, progress=progress, params={"n": int(n)},
+    )
+
+
+def td_lambda(
+    problem: FiniteMDP | Any, policy: Policy | Any = None, *, lam: float = 0.8,
+    trace: Trace = "accumulating", episodes: int = 100, alpha: Schedule | float | str | None = 0.1,
+    gamma: float | None = None, seed: Seed = None, init: float = 0.0, checkpoints: int = 50,
+    max_steps: int = 10_000, model: FiniteMDP | None = None, progress: bool = False,
+) -> LearnResult:
+    """Tabular TD(lambda) prediction with eligibility traces (S&B section 12.2).
+
+    delta_t = R_{t+1} + gamma V(S_{t+1}) - V(S_t); e(S_t) <- e(S_t) + 1
+    (accumulating) or 1 (replacing); V <- V + alpha delta_t e; e <- gamma lambda e.
+    lambda = 0 is TD(0); lambda = 1 (accumulating, offline) approaches Monte Carlo.
+    Arguments as :func:`td0`, plus ``lam`` and ``trace``.
+    """
+    return _learn(
+        _Algo("td-lambda", "lambda", False, lam=_check_lambda(lam), trace=_check_trace(trace)),
+        problem, policy, episodes=episodes, seed=seed, gamma=gamma, alpha=alpha, init=init,
+        checkpoints=checkpoints, max_steps=max_steps, model=model, progress=progress,
+        params={"lambda": float(lam), "trace": trace},
+    )
+
+
+def _control(
+    algo: _Algo, problem: Any, *, episodes: int, alpha: Any, epsilon: Any, gamma: float | None,
+    seed: Seed, init: float, checkpoints: int, max_steps: int, model: FiniteMDP | None,
+    progress: bool, params: dict[str, Any] | None = None,
+) -> LearnResult:
+    return _learn(
+        algo, problem, None, episodes=episodes, seed=seed, gamma=gamma, alpha=alpha,
+        epsilon=epsilon, init=init, checkpoints=checkpoints, max_steps=max_steps, model=model,
+        progress=progress, params=params,
+    )
+
+
+_CONTROL_ARGS = """
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the pair's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a
+            schedule of the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial Q(s, a) of the non-terminal states (optimistic if high).
+        checkpoints: About how many points of the error curve against q*.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the
+        error against q* where the model is known.
+"""
+
+
+def sarsa(
+    problem: FiniteMDP | Any, *, episodes: int = 500, alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
+    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
+    model: FiniteMDP | None = None, progress: bool = False,
+) -> LearnResult:
+    """Sarsa, on-policy TD control (S&B section 6.4).
+
+    Q(S, A) <- Q(S, A) + alpha [R + gamma Q(S', A') - Q(S, A)], with A' the
+    epsilon-greedy action actually taken next.
+    """
+    return _control(
+        _Algo("sarsa", "one_step", True, rule=K.SARSA), problem, episodes=episodes, alpha=alpha,
+        epsilon=epsilon, gamma=gamma, seed=seed, init=init, checkpoints=checkpoints,
+        max_steps=max_steps, model=model, progress=progress,
+    )
+
+
+def q_learning(
+    problem: FiniteMDP | Any, *, episodes: int = 500, alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
+    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
+    model: FiniteMDP | None = None, progress: bool = False,
+) -> LearnResult:
+    """Q-learning, off-policy TD control (S&B section 6.5).
+
+    Q(S, A) <- Q(S, A) + alpha [R + gamma max_a Q(S', a) - Q(S, A)].
+    """
+    return _control(
+        _Algo("q-learning", "one_step", True, rule=K.Q_LEARNING), problem, episodes=episodes,
+        alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed, init=init, checkpoints=checkpoints,
+        max_steps=max_steps, model=model, progress=progress,
+    )
+
+
+def expected_sarsa(
+    problem: FiniteMDP | Any, *, episodes: int = 500, alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
+    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
+    model: FiniteMDP | None = None, progress: bool = False,
+) -> LearnResult:
+    """Expected Sarsa (S&B section 6.6).
+
+    Q(S, A) <- Q(S, A) + alpha [R + gamma sum_a pi(a | S') Q(S', a) - Q(S, A)], pi the
+    epsilon-greedy policy of Q.
+    """
+    return _control(
+        _Algo("expected-sarsa", "one_step", True, rule=K.EXPECTED_SARSA), problem,
+        episodes=episodes, alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed, init=init,
+        checkpoints=checkpoints, max_steps=max_steps, model=model, progress=progress,
+    )
+
+
+def double_q_learning(
+    problem: FiniteMDP | Any, *, episodes: int = 500, alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
+    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
+    model: FiniteMDP | None = None, progress: bool = False,
+) -> LearnResult:
+    """Double Q-learning (S&B section 6.7), which removes the maximisation bias.
+
+    With probability 1/2: Q1(S, A) <- Q1 + alpha [R + gamma Q2(S', argmax_a Q1(S', a))
+    - Q1(S, A)], else the same with Q1 and Q2 swapped; behaviour epsilon-greedy in
+    Q1 + Q2. ``result.q`` is (Q1 + Q2) / 2.
+    """
+    return _control(
+        _Algo("double-q-learning", "one_step", True, rule=K.DOUBLE_Q), problem,
+        episodes=episodes, alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed, init=init,
+        checkpoints=checkpoints, max_steps=max_steps, model=model, progress=progress,
+    )
+
+
+def n_step_sarsa(
+    problem: FiniteMDP | Any, *, n: int = 4, episodes: int = 500,
+    alpha: Schedule | float | str | None = 0.1, epsilon: Schedule | float | str | None = 0.1,
+    gamma: float | None = None, seed: Seed = None, init: float = 0.0, checkpoints: int = 50,
+    max_steps: int = 10_000, model: FiniteMDP | None = None, progress: bool = False,
+) -> LearnResult:
+    """n-step Sarsa (S&B section 7.2).
+
+    Q(S_tau, A_tau) <- Q + alpha [G_{tau:tau+n} - Q(S_tau, A_tau)] with G = R_{tau+1} +
+    ... + gamma^{n-1} R_{tau+n} + gamma^n Q(S_{tau+n}, A_{tau+n}). n = 1 is Sarsa.
+    """
+    return _control(
+        _Algo("n-step-sarsa", "n_step", True, n=_check_n(n)), problem, episodes=episodes,
+        alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed, init=init, checkpoints=checkpoints,
+        max_steps=max_steps, model=model, progress=progress, params={"n": int(n)},
+    )
+
+
+def sarsa_lambda(
+    problem: FiniteMDP | Any, *, lam: float = 0.8, trace: Trace = "accumulating",
+    episodes: int = 500, alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
+    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
+    model: FiniteMDP | None = None, progress: bool = False,
+) -> LearnResult:
+    """Tabular Sarsa(lambda) with eligibility traces (S&B section 12.7).
+
+    delta = R + gamma Q(S', A') - Q(S, A); e(S, A) <- e + 1 (accumulating) or 1
+    (replacing); Q <- Q + alpha delta e; e <- gamma lambda e. lambda = 0 is Sarsa.
+    """
+    return _control(
+        _Algo("sarsa-lambda", "lambda", True, lam=_check_lambda(lam), trace=_check_trace(trace)),
+        problem, episodes=episodes, alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed,
+        init=init, checkpoints=checkpoints, max_steps=max_steps, model=model, progress=progress,
+        params={"lambda": float(lam), "trace": trace},
+    )
+
+
+def dyna_q(
+    problem: FiniteMDP | Any, *, planning_steps: int = 5, episodes: int = 500,
+    alpha: Schedule | float | str | None = 0.1, epsilon: Schedule | float | str | None = 0.1,
+    gamma: float | None = None, seed: Seed = None, init: float = 0.0, checkpoints: int = 50,
+    max_steps: int = 10_000, model: FiniteMDP | None = None, progress: bool = False,
+) -> LearnResult:
+    """Tabular Dyna-Q (S&B section 8.2): Q-learning plus planning from a learned model.
+
+    After each real step, Model(S, A) <- (R, S') and ``planning_steps`` Q-learning
+    updates on pairs drawn uniformly from those seen, with (R, S') from the model (the
+    last outcome seen: exact on deterministic problems). ``planning_steps = 0`` is
+    Q-learning.
+    """
+    return _control(
+        _Algo("dyna-q", "dyna", True, planning=_check_planning(planning_steps)), problem,
+        episodes=episodes, alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed, init=init,
+        checkpoints=checkpoints, max_steps=max_steps, model=model, progress=progress,
+        params={"planning_steps": int(planning_steps)},
+    )
+
+
+for _fn in (sarsa, q_learning, expected_sarsa, double_q_learning, n_step_sarsa, sarsa_lambda, dyna_q):
+    _fn.__doc__ = (_fn.__doc__ or "").rstrip() + "\n" + _CONTROL_ARGS
+
+
+# =============================================================================== registry
+_ALGOS: dict[str, Any] = {
+    "td0": lambda o: _Algo("td0", "td0", False),
+    "n-step-td": lambda o: _Algo("n-step-td", "n_step", False, n=_check_n(o.pop("n", 4))),
+    "td-lambda": lambda o: _Algo(
+        "td-lambda", "lambda", False, lam=_check_lambda(o.pop("lam", 0.8)),
+        trace=_check_trace(o.pop("trace", "accumulating")),
+    ),
+    "sarsa": lambda o: _Algo("sarsa", "one_step", True, rule=K.SARSA),
+    "q-learning": lambda o: _Algo("q-learning", "one_step", True, rule=K.Q_LEARNING),
+    "expected-sarsa": lambda o: _Algo("expected-sarsa", "one_step", True, rule=K.EXPECTED_SARSA),
+    "double-q-learning": lambda o: _Algo("double-q-learning", "one_step", True, rule=K.DOUBLE_Q),
+    "n-step-sarsa": lambda o: _Algo("n-step-sarsa", "n_step", True, n=_check_n(o.pop("n", 4))),
+    "sarsa-lambda": lambda o: _Algo(
+        "sarsa-lambda", "lambda", True, lam=_check_lambda(o.pop("lam", 0.8)),
+        trace=_check_trace(o.pop("trace", "accumulating")),
+    ),
+    "dyna-q": lambda o: _Algo("dyna-q", "dyna", True, planning=_check_planning(o.pop("planning_steps", 5))),
+}
+
+_ALPHA = Option("--alpha", "alpha", "schedule", "Step size alpha: a number, or a schedule of each entry's update count (1/n, inverse:1,0.6,0.01, exp:0.5,0.999,0.01, linear:0.5,0.01,10000).")
+_EPSILON = Option("--epsilon", "epsilon", "schedule", "Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of the episode number (1/n, exp:1,0.999,0.01, linear:1,0.01,5000).")
+_INIT = Option("--init", "init", "float", "Initial value of every non-terminal entry of the table (high values explore optimistically).")
+_N = Option("--n", "n", "int", "Number of steps n of the n-step return (n = 1 is one-step TD).")
+_LAM = Option("--lambda", "lam", "float", "Trace-decay rate lambda in [0, 1] (0 is one-step TD).")
+_TRACE = Option("--trace", "trace", "str", "Eligibility trace: accumulating or replacing.")
+_PLAN = Option("--planning-steps", "planning_steps", "int", "Planning updates from the learned model after each real step (0 is Q-learning).")
+
+for _name, _learner, _desc, _opts, _kind, _eps in (
+    ("td0", td0, "TD(0) prediction of v_pi (S&B 6.1).", (_ALPHA, _INIT), "prediction", 100),
+    ("n-step-td", n_step_td, "n-step TD prediction of v_pi (S&B 7.1).", (_N, _ALPHA, _INIT), "prediction", 100),
+    ("td-lambda", td_lambda, "TD(lambda) prediction with eligibility traces (S&B 12.2).", (_LAM, _TRACE, _ALPHA, _INIT), "prediction", 100),
+    ("sarsa", sarsa, "Sarsa: on-policy TD control (S&B 6.4).", (_ALPHA, _EPSILON, _INIT), "control", 500),
+    ("q-learning", q_learning, "Q-learning: off-policy TD control (S&B 6.5).", (_ALPHA, _EPSILON, _INIT), "control", 500),
+    ("expected-sarsa", expected_sarsa, "Expected Sarsa (S&B 6.6).", (_ALPHA, _EPSILON, _INIT), "control", 500),
+    ("double-q-learning", double_q_learning, "Double Q-learning, no maximisation bias (S&B 6.7).", (_ALPHA, _EPSILON, _INIT), "control", 500),
+    ("n-step-sarsa", n_step_sarsa, "n-step Sarsa (S&B 7.2).", (_N, _ALPHA, _EPSILON, _INIT), "control", 500),
+    ("sarsa-lambda", sarsa_lambda, "Sarsa(lambda) with eligibility traces (S&B 12.7).", (_LAM, _TRACE, _ALPHA, _EPSILON, _INIT), "control", 500),
+    ("dyna-q", dyna_q, "Dyna-Q: Q-learning plus planning from a learned model (S&B 8.2).", (_PLAN, _ALPHA, _EPSILON, _INIT), "control", 500),
+):
+    register_algorithm(_name, _learner, _desc, options=_opts, kind=_kind, default_episodes=_eps)  # type: ignore[arg-type]

@@ -1,0 +1,530 @@
+"""The TD family's update rules and episode loops, each written once for both paths.
+
+Every algorithm of Sutton & Barto chapters 6, 7, 8 and 12 is one function below, in
+plain top-to-bottom Python that numba compiles:
+
+* the **compiled path** calls ``kernel(model, ...)`` with ``model`` the tuple of a
+  FiniteMDP's arrays (:func:`model_tuple` of a
+  :class:`~policylab.tabular.kernels.KernelMDP`): numba compiles the loop together with
+  the sampling of the outcome table;
+* the **general path** calls ``kernel.py_func(GymStepper(env, index), ...)``: the very
+  same source, interpreted, over any Gymnasium env with discrete observations.
+
+The environment is reached only through :func:`env_reset` and :func:`env_step`; their
+compiled versions sample the model with the shared kernel conventions
+(:func:`~policylab.tabular.kernels.sample_start`,
+:func:`~policylab.tabular.kernels.sample_next`: no random number for an outcome that
+is certain), and the agent's choices use the shared
+:func:`~policylab.tabular.kernels.epsilon_greedy_action` /
+:func:`~policylab.tabular.kernels.sample_action` with the run's xoshiro state ``rng``.
+So on a deterministic MDP both paths give bit-identical results for one seed.
+
+Conventions of every kernel: R_{t+1} follows A_t; an episode ends by ``terminated``
+(no bootstrap) or by truncation (the env's time limit or ``max_steps``: bootstrap from
+the last state). A kernel runs episodes ``k0 .. k1 - 1`` (so that learners can record
+the error between chunks), updates its tables in place, writes each episode's return
+G_0 = sum_k gamma^k R_{k+1} into ``returns[k]`` and its length into ``lengths[k]``,
+and returns the number of environment steps taken. Step sizes are read from a
+schedule at n = the number of updates of the entry so far (1/n is then the sample
+average), exploration rates at n = the episode number.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numba import njit, types
+from numba.extending import overload, register_jitable
+
+from policylab.tabular.kernels import (
+    epsilon_greedy_action,
+    epsilon_greedy_prob,
+    rand_below,
+    sample_action,
+    sample_next,
+    sample_start,
+)
+from policylab.tabular.schedules import schedule_value
+
+__all__ = [
+    "DOUBLE_Q",
+    "EXPECTED_SARSA",
+    "Q_LEARNING",
+    "SARSA",
+    "TRACE_ACCUMULATING",
+    "TRACE_REPLACING",
+    "GymStepper",
+    "double_q_target",
+    "dyna_q_kernel",
+    "env_reset",
+    "env_step",
+    "expected_sarsa_target",
+    "lambda_kernel",
+    "model_tuple",
+    "n_step_kernel",
+    "n_step_return",
+    "one_step_control_kernel",
+    "q_learning_target",
+    "sarsa_target",
+    "td0_kernel",
+    "td_error",
+    "td_target",
+    "td_update",
+]
+
+#: Rules of :func:`one_step_control_kernel`.
+SARSA, Q_LEARNING, EXPECTED_SARSA, DOUBLE_Q = 0, 1, 2, 3
+#: Eligibility-trace kinds of :func:`lambda_kernel`.
+TRACE_ACCUMULATING, TRACE_REPLACING = 0, 1
+
+
+# ---------------------------------------------------------------------------- environment
+def model_tuple(km: Any) -> tuple[Any, ...]:
+    """The model a compiled kernel steps, from a :class:`~policylab.tabular.kernels.KernelMDP`.
+
+    ``(indptr, next_states, probs, rewards, terminal, initial, n_actions)``.
+    """
+    return (km.indptr, km.next_states, km.probs, km.rewards, km.terminal, km.initial,
+            int(km.mask.shape[1]))
+
+
+class GymStepper:
+    """A Gymnasium env seen through the kernels' two calls (the general path).
+
+    Observations become table rows through ``index`` (a
+    :class:`~policylab.tabular.common.StateIndex` with a fixed size). The first
+    :meth:`reset` seeds the env with ``env_seed``; later resets continue its stream.
+    """
+
+    def __init__(self, env: Any, index: Any, env_seed: int | None) -> None:
+        self.env = env
+        self.index = index
+        self._seed = env_seed
+
+    def reset(self) -> int:
+        """Start an episode; return the row of S_0."""
+        obs, _ = self.env.reset(seed=self._seed)
+        self._seed = None
+        return int(self.index(obs))
+
+    def step(self, a: int) -> tuple[int, float, bool, bool]:
+        """Take A_t; return (row of S_{t+1}, R_{t+1}, terminated, truncated)."""
+        obs, r, terminated, truncated, _ = self.env.step(int(a))
+        return int(self.index(obs)), float(r), bool(terminated), bool(truncated)
+
+
+def env_reset(env: Any, rng: Any) -> int:
+    """S_0: ``env.reset()`` (general path; compiled: a draw from the model's start)."""
+    return int(env.reset())
+
+
+def env_step(env: Any, s: int, a: int, rng: Any) -> tuple[int, float, bool, bool]:
+    """(S_{t+1}, R_{t+1}, terminated, truncated) after A_t = a in S_t = s."""
+    return env.step(a)  # type: ignore[no-any-return]
+
+
+@overload(env_reset)
+def _env_reset_model(env, rng):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
+    if isinstance(env, types.BaseTuple):
+        return lambda env, rng: sample_start(env[5], rng)
+    return None
+
+
+@overload(env_step)
+def _env_step_model(env, s, a, rng):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
+    if isinstance(env, types.BaseTuple):
+
+        def impl(env, s, a, rng):  # type: ignore[no-untyped-def]
+            k = sample_next(env[0], env[2], s * env[6] + a, rng)
+            nxt = int(env[1][k])
+            return nxt, float(env[3][k]), bool(env[4][nxt]), False
+
+        return impl
+    return None
+
+
+# ---------------------------------------------------------------------------- update rules
+@register_jitable
+def td_update(estimate: float, alpha: float, target: float) -> float:
+    """NewEstimate = OldEstimate + alpha [Target - OldEstimate]  (S&B eq. 2.4)."""
+    return estimate + alpha * (target - estimate)
+
+
+@register_jitable
+def td_target(r: float, gamma: float, v_next: float, terminated: bool) -> float:
+    """The TD(0) target R_{t+1} + gamma V(S_{t+1}), with V(terminal) = 0  (S&B eq. 6.2)."""
+    if terminated:
+        return r
+    return r + gamma * v_next
+
+
+@register_jitable
+def td_error(r: float, gamma: float, v_next: float, v: float, terminated: bool) -> float:
+    """The TD error delta_t = R_{t+1} + gamma V(S_{t+1}) - V(S_t)  (S&B eq. 6.5)."""
+    return td_target(r, gamma, v_next, terminated) - v
+
+
+@register_jitable
+def sarsa_target(r: float, gamma: float, q_next: float, terminated: bool) -> float:
+    """The Sarsa target R_{t+1} + gamma Q(S_{t+1}, A_{t+1})  (S&B eq. 6.7)."""
+    if terminated:
+        return r
+    return r + gamma * q_next
+
+
+@register_jitable
+def q_learning_target(r: float, gamma: float, q_next_row: Any, mask_row: Any, terminated: bool) -> float:
+    """The Q-learning target R_{t+1} + gamma max_a Q(S_{t+1}, a)  (S&B eq. 6.8)."""
+    if terminated:
+        return r
+    best = -np.inf
+    for a in range(q_next_row.shape[0]):
+        if mask_row[a] and q_next_row[a] > best:
+            best = q_next_row[a]
+    return r + gamma * best
+
+
+@register_jitable
+def expected_sarsa_target(
+    r: float, gamma: float, q_next_row: Any, mask_row: Any, epsilon: float, terminated: bool
+) -> float:
+    """R_{t+1} + gamma sum_a pi(a | S_{t+1}) Q(S_{t+1}, a), pi epsilon-greedy  (S&B eq. 6.9).
+
+    pi is the behaviour policy's epsilon-greedy (ties shared), as
+    :func:`~policylab.tabular.kernels.epsilon_greedy_prob` gives it.
+    """
+    if terminated:
+        return r
+    expected = 0.0
+    for a in range(q_next_row.shape[0]):
+        if mask_row[a]:
+            expected += epsilon_greedy_prob(q_next_row, mask_row, epsilon, a) * q_next_row[a]
+    return r + gamma * expected
+
+
+@register_jitable
+def double_q_target(
+    r: float, gamma: float, q_select_row: Any, q_eval_row: Any, mask_row: Any, terminated: bool
+) -> float:
+    """R_{t+1} + gamma Q2(S_{t+1}, argmax_a Q1(S_{t+1}, a))  (S&B eq. 6.10).
+
+    One table picks the action (its first maximiser), the other values it.
+    """
+    if terminated:
+        return r
+    best = -np.inf
+    arg = 0
+    for a in range(q_select_row.shape[0]):
+        if mask_row[a] and q_select_row[a] > best:
+            best = q_select_row[a]
+            arg = a
+    return r + gamma * q_eval_row[arg]
+
+
+@register_jitable
+def n_step_return(rewards: Any, start: int, end: int, gamma: float) -> tuple[float, float]:
+    """sum_{i=start+1}^{end} gamma^{i-start-1} R_i (S&B eq. 7.1 without the tail), and gamma^{end-start}.
+
+    ``rewards`` is a ring buffer indexed ``i % len(rewards)``; the second value is the
+    discount of the bootstrap term gamma^n V(S_{t+n}).
+    """
+    m = rewards.shape[0]
+    g = 0.0
+    p = 1.0
+    for i in range(start + 1, end + 1):
+        g += p * rewards[i % m]
+        p *= gamma
+    return g, p
+
+
+# ---------------------------------------------------------------------------- TD(0)
+@njit(cache=True)
+def td0_kernel(
+    env: Any, pi: Any, v: Any, k0: int, k1: int, gamma: float, alpha_params: Any,
+    max_steps: int, rng: Any, counts: Any, returns: Any, lengths: Any,
+) -> int:
+    """Tabular TD(0) prediction of v_pi (S&B section 6.1), in place on ``v``.
+
+    Each step: A ~ pi(. | S); take A, observe R, S'; V(S) <- V(S) + alpha [R + gamma
+    V(S') - V(S)]; S <- S'.
+    """
+    steps = 0
+    for k in range(k0, k1):
+        s = env_reset(env, rng)
+        g, disc, t = 0.0, 1.0, 0
+        while True:
+            a = sample_action(pi[s], rng)
+            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            t += 1
+            g += disc * r
+            disc *= gamma
+            counts[s] += 1
+            alpha = schedule_value(alpha_params, float(counts[s]))
+            v[s] = td_update(v[s], alpha, td_target(r, gamma, v[s2], terminated))
+            if terminated or truncated or t >= max_steps:
+                break
+            s = s2
+        returns[k] = g
+        lengths[k] = t
+        steps += t
+    return steps
+
+
+# ---------------------------------------------------------------------------- one-step control
+@register_jitable
+def _behaviour(q1: Any, q2: Any, s: int, mask: Any, epsilon: float, rule: int, qsum: Any, rng: Any) -> int:
+    """epsilon-greedy in Q (in Q1 + Q2 for Double Q-learning)."""
+    if rule == 3:
+        for a in range(q1.shape[1]):
+            qsum[a] = q1[s, a] + q2[s, a]
+        return epsilon_greedy_action(qsum, mask[s], epsilon, rng)
+    return epsilon_greedy_action(q1[s], mask[s], epsilon, rng)
+
+
+@njit(cache=True)
+def one_step_control_kernel(
+    env: Any, mask: Any, q1: Any, q2: Any, rule: int, k0: int, k1: int, gamma: float,
+    alpha_params: Any, epsilon_params: Any, max_steps: int, rng: Any, counts: Any,
+    returns: Any, lengths: Any, first_actions: Any,
+) -> int:
+    """Sarsa, Q-learning, Expected Sarsa or Double Q-learning (S&B 6.4-6.7), in place.
+
+    ``rule`` :data:`SARSA`: A' ~ epsilon-greedy(Q(S', .)) is chosen *before* the
+    update of Q(S, A) toward R + gamma Q(S', A'). :data:`Q_LEARNING` and
+    :data:`EXPECTED_SARSA`: Q(S, A) moves toward R + gamma max_a Q(S', a) or toward
+    R + gamma E_pi Q(S', .), and the next action is chosen after the update (the
+    book's boxes). :data:`DOUBLE_Q`: a fair coin picks which of Q1, Q2 is updated
+    (the other one values the argmax); behaviour is epsilon-greedy in Q1 + Q2.
+    ``first_actions[k]`` receives A_0 of episode k (Figure 6.5 counts "left" in A).
+    """
+    qsum = np.zeros(q1.shape[1])
+    steps = 0
+    for k in range(k0, k1):
+        epsilon = schedule_value(epsilon_params, k + 1.0)
+        s = env_reset(env, rng)
+        a = _behaviour(q1, q2, s, mask, epsilon, rule, qsum, rng)
+        first_actions[k] = a
+        g, disc, t = 0.0, 1.0, 0
+        while True:
+            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            t += 1
+            g += disc * r
+            disc *= gamma
+            counts[s, a] += 1
+            alpha = schedule_value(alpha_params, float(counts[s, a]))
+            a2 = 0
+            if rule == 0:
+                q_next = 0.0
+                if not terminated:
+                    a2 = _behaviour(q1, q2, s2, mask, epsilon, rule, qsum, rng)
+                    q_next = q1[s2, a2]
+                q1[s, a] = td_update(q1[s, a], alpha, sarsa_target(r, gamma, q_next, terminated))
+            elif rule == 1:
+                target = q_learning_target(r, gamma, q1[s2], mask[s2], terminated)
+                q1[s, a] = td_update(q1[s, a], alpha, target)
+            elif rule == 2:
+                target = expected_sarsa_target(r, gamma, q1[s2], mask[s2], epsilon, terminated)
+                q1[s, a] = td_update(q1[s, a], alpha, target)
+            elif rule == 3:
+                if rand_below(rng, 2) == 0:  # the coin: update Q1 (else Q2)
+                    target = double_q_target(r, gamma, q1[s2], q2[s2], mask[s2], terminated)
+                    q1[s, a] = td_update(q1[s, a], alpha, target)
+                else:
+                    target = double_q_target(r, gamma, q2[s2], q1[s2], mask[s2], terminated)
+                    q2[s, a] = td_update(q2[s, a], alpha, target)
+            if terminated or truncated or t >= max_steps:
+                break
+            if rule != 0:
+                a2 = _behaviour(q1, q2, s2, mask, epsilon, rule, qsum, rng)
+            s, a = s2, a2
+        returns[k] = g
+        lengths[k] = t
+        steps += t
+    return steps
+
+
+# ---------------------------------------------------------------------------- n-step
+@njit(cache=True)
+def n_step_kernel(
+    env: Any, mask: Any, pi: Any, w: Any, control: bool, n: int, k0: int, k1: int,
+    gamma: float, alpha_params: Any, epsilon_params: Any, max_steps: int, rng: Any,
+    counts: Any, returns: Any, lengths: Any,
+) -> int:
+    """n-step TD prediction (``control=False``) or n-step Sarsa (S&B 7.1, 7.2), in place.
+
+    ``w`` is the table learned: V as an (S, 1) column for prediction (actions from
+    ``pi``), Q (S, A) for control (actions epsilon-greedy in Q). With tau = t - n + 1,
+
+        G_{tau:tau+n} = sum_{i=tau+1}^{min(tau+n, T)} gamma^{i-tau-1} R_i
+                        + gamma^n W(S_{tau+n}[, A_{tau+n}])   if tau + n < T
+
+    and W(S_tau[, A_tau]) <- W + alpha [G - W]. A truncated episode bootstraps from its
+    last state. With n = 1 this is exactly TD(0) or Sarsa.
+    """
+    m = n + 1
+    S_buf = np.zeros(m, dtype=np.int64)
+    A_buf = np.zeros(m, dtype=np.int64)
+    R_buf = np.zeros(m)
+    big = np.iinfo(np.int64).max
+    steps = 0
+    for k in range(k0, k1):
+        epsilon = schedule_value(epsilon_params, k + 1.0)
+        s0 = env_reset(env, rng)
+        S_buf[0] = s0
+        if control:
+            A_buf[0] = epsilon_greedy_action(w[s0], mask[s0], epsilon, rng)
+        T = big
+        bootstrap_end = False
+        g, disc, t = 0.0, 1.0, 0
+        while True:
+            if t < T:
+                if not control:  # prediction: A_t ~ pi(. | S_t)
+                    A_buf[t % m] = sample_action(pi[S_buf[t % m]], rng)
+                s2, r, terminated, truncated = env_step(env, S_buf[t % m], A_buf[t % m], rng)
+                g += disc * r
+                disc *= gamma
+                R_buf[(t + 1) % m] = r
+                S_buf[(t + 1) % m] = s2
+                if terminated or truncated or t + 1 >= max_steps:
+                    T = t + 1
+                    bootstrap_end = not terminated
+                if control and not terminated:
+                    A_buf[(t + 1) % m] = epsilon_greedy_action(w[s2], mask[s2], epsilon, rng)
+            tau = t - n + 1
+            if tau >= 0:
+                end = min(tau + n, T)
+                G, p = n_step_return(R_buf, tau, end, gamma)
+                if end < T or bootstrap_end:
+                    G += p * w[S_buf[end % m], A_buf[end % m] if control else 0]
+                s_tau = S_buf[tau % m]
+                c_tau = A_buf[tau % m] if control else 0
+                counts[s_tau, c_tau] += 1
+                alpha = schedule_value(alpha_params, float(counts[s_tau, c_tau]))
+                w[s_tau, c_tau] = td_update(w[s_tau, c_tau], alpha, G)
+            if tau == T - 1:
+                break
+            t += 1
+        returns[k] = g
+        lengths[k] = T
+        steps += T
+    return steps
+
+
+# ---------------------------------------------------------------------------- eligibility traces
+@njit(cache=True)
+def lambda_kernel(
+    env: Any, mask: Any, pi: Any, w: Any, control: bool, lam: float, trace: int,
+    k0: int, k1: int, gamma: float, alpha_params: Any, epsilon_params: Any, max_steps: int,
+    rng: Any, counts: Any, returns: Any, lengths: Any,
+) -> int:
+    """Tabular TD(lambda) (``control=False``) or Sarsa(lambda) (S&B 12.2, 12.7), in place.
+
+    Each step: delta = R + gamma W(S'[, A']) - W(S[, A]); the trace of the current
+    entry is raised (accumulating: e <- e + 1; replacing: e <- 1); then for every entry
+    W <- W + alpha delta e and e <- gamma lambda e. Traces are cleared at the start of
+    each episode. With lambda = 0 this is exactly TD(0) or Sarsa. The step size is read
+    at the current entry's update count.
+    """
+    e = np.zeros_like(w)
+    n_rows, n_cols = w.shape
+    steps = 0
+    for k in range(k0, k1):
+        epsilon = schedule_value(epsilon_params, k + 1.0)
+        e[:, :] = 0.0
+        s = env_reset(env, rng)
+        a = epsilon_greedy_action(w[s], mask[s], epsilon, rng) if control else 0
+        g, disc, t = 0.0, 1.0, 0
+        while True:
+            if not control:
+                a = sample_action(pi[s], rng)
+            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            t += 1
+            g += disc * r
+            disc *= gamma
+            c = a if control else 0
+            a2 = 0
+            w_next = 0.0
+            if not terminated:
+                if control:
+                    a2 = epsilon_greedy_action(w[s2], mask[s2], epsilon, rng)
+                    w_next = w[s2, a2]
+                else:
+                    w_next = w[s2, 0]
+            delta = td_error(r, gamma, w_next, w[s, c], terminated)
+            if trace == 1:
+                e[s, c] = 1.0
+            else:
+                e[s, c] += 1.0
+            counts[s, c] += 1
+            alpha = schedule_value(alpha_params, float(counts[s, c]))
+            for i in range(n_rows):
+                for j in range(n_cols):
+                    if e[i, j] != 0.0:
+                        w[i, j] += alpha * delta * e[i, j]
+                        e[i, j] *= gamma * lam
+            if terminated or truncated or t >= max_steps:
+                break
+            s, a = s2, a2
+        returns[k] = g
+        lengths[k] = t
+        steps += t
+    return steps
+
+
+# ---------------------------------------------------------------------------- Dyna-Q
+@njit(cache=True)
+def dyna_q_kernel(
+    env: Any, mask: Any, q: Any, n_planning: int, k0: int, k1: int, gamma: float,
+    alpha_params: Any, epsilon_params: Any, max_steps: int, rng: Any, counts: Any,
+    returns: Any, lengths: Any, model_next: Any, model_reward: Any, seen: Any,
+) -> int:
+    """Tabular Dyna-Q (S&B 8.2): Q-learning plus ``n_planning`` updates from a learned model.
+
+    After each real step: the Q-learning update; Model(S, A) <- (R, S') (the last
+    outcome seen: a deterministic model; ``model_next`` holds -1 for unseen pairs and
+    -2 - S' for an outcome that terminated); then ``n_planning`` times: a pair (S, A)
+    seen before, drawn uniformly; (R, S') <- Model(S, A); the same Q-learning update.
+    ``seen[0]`` counts the pairs seen, ``seen[1:]`` lists them (kept across calls).
+    With ``n_planning = 0`` this is exactly Q-learning.
+    """
+    n_actions = q.shape[1]
+    steps = 0
+    for k in range(k0, k1):
+        epsilon = schedule_value(epsilon_params, k + 1.0)
+        s = env_reset(env, rng)
+        a = epsilon_greedy_action(q[s], mask[s], epsilon, rng)
+        g, disc, t = 0.0, 1.0, 0
+        while True:
+            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            t += 1
+            g += disc * r
+            disc *= gamma
+            counts[s, a] += 1
+            alpha = schedule_value(alpha_params, float(counts[s, a]))
+            q[s, a] = td_update(q[s, a], alpha, q_learning_target(r, gamma, q[s2], mask[s2], terminated))
+            if model_next[s, a] == -1:
+                seen[0] += 1
+                seen[seen[0]] = s * n_actions + a
+            model_next[s, a] = -2 - s2 if terminated else s2
+            model_reward[s, a] = r
+            for _ in range(n_planning):
+                pick = seen[1 + rand_below(rng, seen[0])]
+                ps, pa = pick // n_actions, pick % n_actions
+                pn = model_next[ps, pa]
+                p_term = pn <= -2
+                if p_term:
+                    pn = -2 - pn
+                target = q_learning_target(model_reward[ps, pa], gamma, q[pn], mask[pn], p_term)
+                counts[ps, pa] += 1
+                p_alpha = schedule_value(alpha_params, float(counts[ps, pa]))
+                q[ps, pa] = td_update(q[ps, pa], p_alpha, target)
+            if terminated or truncated or t >= max_steps:
+                break
+            a = epsilon_greedy_action(q[s2], mask[s2], epsilon, rng)
+            s = s2
+        returns[k] = g
+        lengths[k] = t
+        steps += t
+    return steps
+

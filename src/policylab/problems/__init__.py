@@ -4,7 +4,9 @@ Each problem is a function returning a :class:`~policylab.FiniteMDP`; every one 
 registered by name for the command line and as a Gymnasium id.
 """
 
+from policylab.problems.applications import forest_management, inventory_management
 from policylab.problems.blackjack import BLACKJACK_CARDS, blackjack, blackjack_stick_on_20_policy
+from policylab.problems.generators import random_mdp
 from policylab.problems.notes import (
     MOUNTAIN_GRID,
     SLIPPERY_GRID,
@@ -21,6 +23,14 @@ from policylab.problems.registry import (
     list_problems,
     problem,
     register_problem,
+)
+from policylab.problems.sutton_barto import (
+    gamblers_bold_policy,
+    gamblers_problem,
+    gridworld_4x4,
+    gridworld_5x5,
+    jacks_car_rental,
+    jacks_no_move_policy,
 )
 from policylab.problems.td_examples import (
     CLIFF_GRID,
@@ -44,12 +54,21 @@ __all__ = [
     "blackjack",
     "blackjack_stick_on_20_policy",
     "cliff_walking",
+    "forest_management",
+    "gamblers_bold_policy",
+    "gamblers_problem",
     "get_problem",
+    "gridworld_4x4",
+    "gridworld_5x5",
+    "inventory_management",
+    "jacks_car_rental",
+    "jacks_no_move_policy",
     "list_problems",
     "maximization_bias",
     "mountain_gridworld",
     "mountain_gridworld_bad_policy",
     "problem",
+    "random_mdp",
     "random_walk",
     "random_walk_true_values",
     "recycling_robot",

@@ -8,7 +8,6 @@ reward r(s, a) and the transition matrices are derived from the table on first u
 
 from __future__ import annotations
 
-
 from collections.abc import Hashable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property

@@ -26,7 +26,9 @@ from policylab.problems.registry import register_problem
 __all__ = ["BLACKJACK_CARDS", "blackjack", "blackjack_stick_on_20_policy"]
 
 #: Card values of the infinite deck and their probabilities.
-BLACKJACK_CARDS: tuple[tuple[int, float], ...] = tuple((c, 1 / 13) for c in range(1, 10)) + ((10, 4 / 13),)
+BLACKJACK_CARDS: tuple[tuple[int, float], ...] = tuple((c, 1 / 13) for c in range(1, 10)) + (
+    (10, 4 / 13),
+)
 
 _END = "end"
 _BUST = 0
@@ -132,8 +134,13 @@ def blackjack() -> FiniteMDP:
                     s = (total, showing, usable)
                 initial[s] = initial.get(s, 0.0) + pd * p1 * p2
     return FiniteMDP.from_dynamics(
-        dynamics, gamma=1.0, terminal=[_END], actions=["stick", "hit"], initial=initial,
-        name="blackjack", meta={"blackjack": True},
+        dynamics,
+        gamma=1.0,
+        terminal=[_END],
+        actions=["stick", "hit"],
+        initial=initial,
+        name="blackjack",
+        meta={"blackjack": True},
     )
 
 
@@ -141,7 +148,11 @@ def blackjack_stick_on_20_policy(mdp: FiniteMDP) -> Policy:
     """Sutton & Barto's fixed policy of Example 5.1: stick on 20 or 21, else hit."""
     return Policy.deterministic(
         mdp,
-        {s: ("stick" if isinstance(s, tuple) and s[0] >= 20 else "hit") for s in mdp.states if s != _END},
+        {
+            s: ("stick" if isinstance(s, tuple) and s[0] >= 20 else "hit")
+            for s in mdp.states
+            if s != _END
+        },
     )
 
 

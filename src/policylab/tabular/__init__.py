@@ -59,6 +59,7 @@ How to add an algorithm (e.g. SARSA, in ``policylab/tabular/td.py``)
 """
 
 from policylab.tabular.common import Recorder, StateIndex, checkpoint_episodes
+from policylab.tabular.mc import mc_control, mc_off_policy, mc_prediction
 from policylab.tabular.registry import (
     AlgorithmSpec,
     Option,
@@ -96,6 +97,9 @@ __all__ = [
     "checkpoint_episodes",
     "greedy_probs",
     "list_algorithms",
+    "mc_control",
+    "mc_off_policy",
+    "mc_prediction",
     "register_algorithm",
     "schedule_value",
     # temporal-difference learning (policylab.tabular.td)

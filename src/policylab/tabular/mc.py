@@ -61,6 +61,7 @@ from policylab.tabular.kernels import (
     uniform_action,
     writable,
 )
+from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule, schedule_value
 from policylab.tabular.truth import GroundTruth, greedy_probs
@@ -638,6 +639,7 @@ def _run_env(
     state as the fast path, so on a deterministic MDP both give the same numbers.
     """
     A = int(env.action_space.n)
+    own_model = False
     if mdp is not None:
         if mdp.n_actions != A:
             raise InvalidArgumentError(
@@ -750,7 +752,9 @@ def _run_env(
                     k + 1,
                 )
             n = len(index)
-            rec.record(tables.q[:n], tables.v[:n], seen[:n])
+            # an env over its own FiniteMDP can reach every state: score them all, as the
+            # compiled path does; with an outside model score only the states seen so far
+            rec.record(tables.q[:n], tables.v[:n], None if own_model else seen[:n])
             advance(k1 - k0)
     return tables, steps, truncated, index.labels
 
@@ -1086,3 +1090,85 @@ def _check_soft(behavior: Policy) -> None:
             f"off-policy control needs a soft behaviour policy (b(a | s) > 0 for every available "
             f"action); b({behavior.actions[a]!r} | {behavior.states[s]!r}) = 0"
         )
+
+
+# =============================================================================== registry
+_EVERY_VISIT = Option(
+    "--every-visit",
+    "first_visit",
+    "flag",
+    "Every-visit MC: average the returns after every visit, not only the first.",
+    value_if_set=False,
+)
+register_algorithm(
+    "mc-prediction",
+    mc_prediction,
+    "Monte Carlo prediction of v_pi and q_pi (notes section 6): average the returns after each visit.",
+    options=(
+        _EVERY_VISIT,
+        Option(
+            "--alpha",
+            "alpha",
+            "schedule",
+            "Step size: default 1/n (sample average); a number for constant-alpha MC, or "
+            "exp:START,DECAY[,FLOOR], linear:START,END,STEPS.",
+        ),
+    ),
+    kind="prediction",
+    default_episodes=10_000,
+)
+register_algorithm(
+    "mc-control",
+    mc_control,
+    "On-policy Monte Carlo control: exploring starts, or epsilon-greedy with a GLIE schedule.",
+    options=(
+        Option(
+            "--exploring-starts",
+            "exploring_starts",
+            "flag",
+            "Monte Carlo ES: uniform first state and action, then greedy.",
+        ),
+        Option(
+            "--epsilon",
+            "epsilon",
+            "schedule",
+            "Exploration over episodes: default 1/k (GLIE); a number for a constant epsilon, or "
+            "exp:START,DECAY[,FLOOR], linear:START,END,STEPS.",
+        ),
+        Option(
+            "--alpha",
+            "alpha",
+            "schedule",
+            "Step size: default 1/n (sample average); a number for constant-alpha MC.",
+        ),
+        _EVERY_VISIT,
+    ),
+    kind="control",
+    default_episodes=100_000,
+)
+register_algorithm(
+    "mc-off-policy",
+    mc_off_policy,
+    "Off-policy Monte Carlo by importance sampling: prediction of --target, else greedy control.",
+    options=(
+        Option(
+            "--weighted", "weighted", "flag", "Weighted importance sampling (default: ordinary)."
+        ),
+        Option(
+            "--target",
+            "target",
+            "policy",
+            "Target policy to evaluate ('uniform' or a named policy of the problem); default: "
+            "control of the greedy policy.",
+        ),
+        Option(
+            "--epsilon",
+            "epsilon",
+            "schedule",
+            "Control only: behave epsilon-greedily in Q (default: the equiprobable policy).",
+        ),
+        Option("--first-visit", "first_visit", "flag", "First-visit (default: every-visit)."),
+    ),
+    kind="control",
+    default_episodes=100_000,
+)

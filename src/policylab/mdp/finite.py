@@ -770,6 +770,8 @@ class FiniteMDP:
         if init_arr is not None:
             initial = {s: float(init_arr[s]) for s in order if init_arr[s] > 0}
         ordered = {s: dynamics[s] for s in order}
+        from policylab.mdp.gym_grid import gym_grid_layout
+
         return cls.from_dynamics(
             ordered,  # type: ignore[arg-type]
             gamma=gamma,
@@ -777,6 +779,7 @@ class FiniteMDP:
             actions=list(range(A)),
             initial=initial,
             name=name or str(env_id),
+            grid=gym_grid_layout(base, S, A),
         )
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
@@ -36,6 +36,15 @@ class TourContext:
         if self.figures is None:
             self.figures = []
         self.figures.append(path)
+
+    def save(self, fig: Any, name: str) -> Path:
+        """Write a matplotlib figure to ``out_dir/name``, record it, and say where it went."""
+        from policylab.plot import save_figure
+
+        path = save_figure(fig, self.out_dir / name)
+        self.figure(path)
+        self.console.print(f"[dim]figure: {path}[/]")
+        return path
 
 
 _SECTIONS: list[tuple[float, str, Callable[[TourContext], None]]] = []

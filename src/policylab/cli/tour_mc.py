@@ -55,14 +55,22 @@ def mc_prediction_grid(ctx: TourContext) -> None:
         f"It is better than the random policy: v = {pl.evaluate_policy(mdp, greedy)[0]:.3f} "
         f"from cell 1 against {v_pi[0]:.3f} ({pl.compare_policies(mdp, greedy, pi)})."
     )
-    try:
-        from policylab.plot import save_learning_figure  # type: ignore[import-not-found,unused-ignore]
-    except ImportError:
-        return
-    path = ctx.out_dir / "mc_prediction_slippery.png"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    save_learning_figure(res, path)
-    ctx.figure(path)
+    from policylab.plot import learning_figure, q_table_figure
+
+    ctx.save(
+        q_table_figure(
+            mdp,
+            res.q,
+            reference=q_pi,
+            labels=("Monte Carlo Q-table", "exact q_pi"),
+            title=f"Slippery gridworld, random policy: Q after {res.episodes:,} episodes",
+        ),
+        "08_slippery_q_table.png",
+    )
+    ctx.save(
+        learning_figure(res, title="MC prediction on the slippery gridworld vs the exact q_pi"),
+        "09_mc_prediction_error.png",
+    )
 
 
 @tour_section(61, "6. Monte Carlo control: from episodes to the optimal policy")
@@ -91,6 +99,18 @@ def mc_control_grid(ctx: TourContext) -> None:
             f"{100 * (err.get('optimal_actions') or 0):.0f}%",
         )
     c.print(table)
+    from policylab.plot import gridworld_figure
+
+    ctx.save(
+        gridworld_figure(
+            mdp,
+            res.q.max(axis=1),
+            res.to_policy(),
+            q=res.q,
+            title=f"MC control (last row above): greedy policy and Q after {episodes:,} episodes",
+        ),
+        "10_slippery_mc_control.png",
+    )
     c.print(
         "Epsilon-greedy control keeps exploring, so actions it rarely takes are known "
         "less well; the greedy actions, which matter, are right."

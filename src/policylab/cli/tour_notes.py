@@ -25,6 +25,13 @@ def loop_and_returns(ctx: TourContext) -> None:
         table.add_row(f"{g:g}", f"{ep.ret(g):.4f}")
     c.print(table)
     c.print("gamma = 0 keeps only R_1; gamma = 1 weighs every reward the same.")
+    from policylab.plot import episode_figure, interaction_loop_figure
+
+    ctx.save(interaction_loop_figure(), "01_interaction_loop.png")
+    ctx.save(
+        episode_figure(mdp, ep, gamma=1.0, title="One episode of the random policy (notes fig. 7)"),
+        "02_slippery_episode.png",
+    )
     c.print(
         "The walking robot's per-step reward (notes 4.1): "
         "r = min(v_x, v_max) - 0.005 (v_y^2 + v_z^2) - 0.05 y^2 - 0.02 ||u||^2 + 0.02"
@@ -73,3 +80,10 @@ def mountain_bad_policy(ctx: TourContext) -> None:
         c.print(f"from {start}: {ep}", soft_wrap=True)
         c.print(f"  return (gamma = 1) = {ep.ret(1.0):g}")
     c.print("The notes: -6 from the start, -5 from the cell to its right.")
+    from policylab.plot import episode_figure
+
+    ep = pl.rollout(mdp, pi, seed=ctx.seed, start=(2, 0))
+    ctx.save(
+        episode_figure(mdp, ep, gamma=1.0, title="The notes' bad policy from the start: G = -6"),
+        "03_mountain_bad_policy_episode.png",
+    )

@@ -31,6 +31,13 @@ def robot_policies(ctx: TourContext) -> None:
     for i, s in enumerate(mdp.states):
         table.add_row(str(s), f"{v_det[i]:.4f}", f"{v_sto[i]:.4f}")
     c.print(table)
+    from policylab.plot import small_mdp_figure
+
+    for name, v, pol in (("deterministic", v_det, det), ("stochastic", v_sto, sto)):
+        ctx.save(
+            small_mdp_figure(mdp, v, pol, title=f"Recycling robot, the {name} policy: v_pi"),
+            f"04_robot_{name}_policy.png",
+        )
     check = bellman_expectation_backup(mdp, v_det, det)
     c.print(
         f"Bellman check: max |T_pi v - v| = {np.abs(check - v_det).max():.1e} "
@@ -65,6 +72,12 @@ def robot_optimum(ctx: TourContext) -> None:
     for i, s in enumerate(mdp.states):
         qt.add_row(str(s), *[f"{q[i, j]:.3f}" if np.isfinite(q[i, j]) else "-" for j in range(3)])
     c.print(qt)
+    from policylab.plot import small_mdp_figure
+
+    ctx.save(
+        small_mdp_figure(mdp, pi.v, pi.policy, q=q, title="Recycling robot: v_*, pi_* and q_*"),
+        "05_robot_optimal.png",
+    )
     c.print(
         f"pi_* = greedy(q_*): {pl.greedy_policy(mdp, q).to_dict()} -- the notes' "
         "deterministic policy is optimal."
@@ -105,6 +118,22 @@ def mountain_optimum(ctx: TourContext) -> None:
         f"bad policy: v(start) = {v_bad[start]:g}, v(right of start) = {v_bad[right]:g} "
         "(the notes: -6, -5); "
         f"optimum: v_*(start) = {res.v[start]:g}, v_*(right of start) = {res.v[right]:g}."
+    )
+    from policylab.plot import gridworld_figure
+
+    ctx.save(
+        gridworld_figure(mdp, v_bad, bad, title="Mountain gridworld: the notes' bad policy"),
+        "06_mountain_bad_policy.png",
+    )
+    ctx.save(
+        gridworld_figure(
+            mdp,
+            res.v,
+            res.policy,
+            q=pl.action_values(mdp, res.v),
+            title="Mountain gridworld: v_*, pi_* and q_*",
+        ),
+        "07_mountain_optimal.png",
     )
     q = pl.action_values(mdp, res.v)
     c.print(

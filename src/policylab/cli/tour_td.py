@@ -61,6 +61,23 @@ def q_learning_frozenlake(ctx: TourContext) -> None:
         f"Value of the start state (gamma 0.95): learned greedy policy {v_learned[0]:.4f}, "
         f"exact optimum v*(start) = {v_star[0]:.4f}."
     )
+    from policylab.plot import gridworld_figure, learning_figure
+
+    ctx.save(
+        gridworld_figure(
+            mdp,
+            res.q.max(axis=1),
+            res.to_policy(),
+            q=res.q,
+            title="Q-learning on FrozenLake-v1: max_a Q, greedy policy, Q-table",
+            value_label="max_a Q(s, a)",
+        ),
+        "11_frozenlake_q_learning.png",
+    )
+    ctx.save(
+        learning_figure(res, title="Q-learning on FrozenLake-v1 against the exact q*"),
+        "12_frozenlake_learning.png",
+    )
 
 
 @tour_section(71, "TD control: Sarsa and Q-learning on the cliff (Example 6.6)")
@@ -86,6 +103,22 @@ def cliff_walking(ctx: TourContext) -> None:
         )
         table.add_row(name, f"{study.mean_return(100):.1f}", book, f"{study.seconds:.2f}")
     c.print(table)
+    from policylab.plot import learning_figure
+
+    runs = {
+        name: tabular.run_seeds(
+            getattr(tabular, name.replace("-", "_")),
+            mdp,
+            10,
+            episodes=500,
+            alpha=0.5,
+            epsilon=0.1,
+        )
+        for name in ("sarsa", "q-learning")
+    }
+    fig = learning_figure(runs, title="Cliff walking (Figure 6.4): 10 seeds, 95% bootstrap band")
+    fig.axes[1].set_ylim(-100, 0)  # the book's range: the first episodes' -2000 hide the gap
+    ctx.save(fig, "13_cliff_sarsa_vs_q_learning.png")
     c.print(
         "Q-learning learns the optimal path along the edge (-13) but its exploring steps "
         "fall off the cliff; Sarsa learns the longer, safer path its own exploration needs."

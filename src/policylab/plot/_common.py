@@ -105,7 +105,10 @@ def check_values(mdp: FiniteMDP, v: ArrayLike, what: str = "v") -> NDArray[np.fl
 
 
 def check_q(mdp: FiniteMDP, q: ArrayLike, what: str = "q") -> NDArray[np.float64]:
-    """Action values as an (S, A) float array; NaN is allowed (drawn blank).
+    """Action values as an (S, A) float array, NaN where an action is unavailable.
+
+    NaN is allowed anywhere (drawn blank); entries of unavailable actions are ignored
+    (the planning layer puts -inf there).
 
     Raises:
         ShapeError: If the array is not (S, A) for the MDP.
@@ -122,10 +125,14 @@ def check_q(mdp: FiniteMDP, q: ArrayLike, what: str = "q") -> NDArray[np.float64
         raise ShapeError(
             f"{what} has shape {arr.shape}; expected (S, A) = ({S}, {A}) for {mdp.name!r}"
         )
+    # Unavailable actions (and terminal rows) may hold anything, -inf by the planning
+    # layer's convention: they are drawn blank.
+    arr = np.where(mdp.action_mask, arr, np.nan)
     if np.any(np.isinf(arr)):
         s, a = map(int, np.argwhere(np.isinf(arr))[0])
         raise InvalidArgumentError(
-            f"{what}[{mdp.states[s]!r}, {mdp.actions[a]!r}] is {arr[s, a]}; values must be finite"
+            f"{what}[{mdp.states[s]!r}, {mdp.actions[a]!r}] is {arr[s, a]}; values of available "
+            "actions must be finite"
         )
     return arr
 

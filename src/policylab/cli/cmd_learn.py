@@ -178,9 +178,11 @@ def _make_command(spec: Any) -> Callable[..., None]:
             args[opt.param] = val
         res = spec.learner(problem, **args)
         if plot is not None:
-            from policylab.plot import save_learning_figure  # type: ignore[attr-defined,unused-ignore]
+            from policylab.plot import save_learning_figure
 
-            save_learning_figure(res, plot)
+            plot = save_learning_figure(
+                res, plot, title=f"{res.algorithm} on {res.problem}: learning curves"
+            )
         if json_out:
             print_json(res.to_json())
             return
@@ -236,7 +238,8 @@ def _make_command(spec: Any) -> Callable[..., None]:
             Path | None,
             None,
             "--plot",
-            help="Write the learning figure (error curve, tables) to this file.",
+            help="Write the learning figure (error against the exact answer by episode, "
+            "return per episode) to this file: PNG, or SVG/PDF by the suffix.",
         ),
         _opt(
             "checkpoints",

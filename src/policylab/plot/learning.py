@@ -269,7 +269,7 @@ def learning_figure(
         results: One learner result, a list of results (seeds of one algorithm), or a
             mapping ``{label: [result per seed]}`` (several algorithms on one figure).
         title: Figure title.
-        smooth: Window of the moving average of returns (default: about 1/50 of the
+        smooth: Window of the moving average of returns (default: about 1/25 of the
             episodes).
         confidence: Coverage of the bootstrap band around the mean over seeds.
 
@@ -323,7 +323,7 @@ def learning_figure(
             for c in runs
             if c.episode_returns is not None
         ]
-        window = smooth if smooth is not None else max(1, min(lengths) // 50)
+        window = smooth if smooth is not None else max(1, min(lengths) // 25)
         for k, (lab, runs) in enumerate(groups.items()):
             rets = [c.episode_returns for c in runs if c.episode_returns is not None]
             if not rets:

@@ -40,6 +40,7 @@ def test_all_solvers_reach_the_brute_force_optimum(case: tuple[pl.FiniteMDP, flo
             pl.value_iteration(mdp, tol=tol),
             pl.value_iteration(mdp, tol=tol, gauss_seidel=True),
             pl.policy_iteration(mdp),
+            pl.policy_iteration(mdp, solver="krylov"),
             pl.policy_iteration(mdp, evaluation="iterative", tol=1e-11),
             modified_policy_iteration(mdp, tol=tol, m=3),
         ]
@@ -83,3 +84,45 @@ def test_evaluation_matches_dense_solve(case: tuple[pl.FiniteMDP, float], seed: 
     # q_pi from v_pi satisfies v_pi = sum_a pi q_pi.
     q = pl.action_values(mdp, oracle, gamma=g)
     assert np.allclose(pl.planning.state_values(mdp, q, pi), oracle, atol=1e-9 * scale)
+
+
+def test_krylov_and_direct_evaluation_agree_on_a_larger_random_mdp() -> None:
+    from policylab.problems import random_mdp
+
+    mdp = random_mdp(3000, 3, 8, seed=5, gamma=0.99)
+    rng = np.random.default_rng(0)
+    det = pl.Policy.from_actions(mdp, rng.integers(0, 3, mdp.n_states))
+    for pi in (det, pl.Policy.uniform(mdp)):
+        direct = pl.evaluate_policy(mdp, pi, solver="direct", return_result=True)
+        krylov = pl.evaluate_policy(mdp, pi, solver="krylov", return_result=True)
+        assert krylov.info["solver"].startswith("krylov")
+        assert krylov.error_bound is not None
+        assert np.max(np.abs(krylov.v - direct.v)) <= krylov.error_bound + 1e-9
+        assert np.max(np.abs(krylov.v - direct.v)) <= 1e-7
+    res = pl.policy_iteration(mdp, solver="krylov")
+    vi = pl.value_iteration(mdp, tol=1e-7)
+    assert vi.error_bound is not None and vi.error_bound <= 1e-7
+    assert np.max(np.abs(vi.v - res.v)) <= 1e-7
+    assert np.array_equal(vi.policy.action_indices(), res.policy.action_indices())
+
+
+def test_krylov_at_gamma_one_does_not_accept_a_large_residual() -> None:
+    # Found by hypothesis: the gamma = 1 residual target once scaled with 1 / (1 - gamma).
+    mdp = small_random_mdp(337, 3, 3, 1.0, episodic=True)
+    krylov = pl.policy_iteration(mdp, solver="krylov")
+    direct = pl.policy_iteration(mdp, solver="direct")
+    assert np.allclose(krylov.v, direct.v, atol=1e-9)
+    assert krylov.residual < 1e-9
+
+
+def test_auto_solver_sweeps_above_the_direct_size() -> None:
+    from policylab.planning.evaluation import DIRECT_MAX_STATES
+    from policylab.problems import random_mdp
+
+    mdp = random_mdp(DIRECT_MAX_STATES + 500, 2, 6, seed=3, gamma=0.9)
+    pi = pl.Policy.from_actions(mdp, np.zeros(mdp.n_states, dtype=np.int64))
+    auto = pl.evaluate_policy(mdp, pi, return_result=True)
+    direct = pl.evaluate_policy(mdp, pi, solver="direct")
+    assert auto.info["solver"].startswith("sweeps")
+    assert auto.error_bound is not None
+    assert np.max(np.abs(auto.v - direct)) <= auto.error_bound + 1e-12

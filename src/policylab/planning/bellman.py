@@ -71,11 +71,10 @@ def action_values(mdp: FiniteMDP, v: ArrayLike, gamma: float | None = None) -> N
 
 
 def _q(mdp: FiniteMDP, v: NDArray[np.float64], gamma: float) -> NDArray[np.float64]:
-    """Q = r + gamma P v with -inf on unavailable actions (no checks)."""
-    q = np.asarray(mdp.transition_matrix @ v).reshape(mdp.n_states, mdp.n_actions)
-    q *= gamma
-    q += mdp.expected_reward
-    q[~mdp.action_mask] = -np.inf
+    """Q = r + gamma P v with -inf on unavailable actions (no checks; one compiled pass)."""
+    from policylab.planning._kernels import q_values
+
+    q: NDArray[np.float64] = q_values(mdp, gamma, v)
     return q
 
 

@@ -30,10 +30,14 @@ from policylab.planning._checks import (
     check_v,
     require_terminal_reachable,
 )
-from policylab.planning._kernels import gauss_seidel_optimality_sweep
+from policylab.planning._kernels import (
+    gauss_seidel_optimality_sweep,
+    optimality_sweep,
+    policy_matvec,
+)
 from policylab.planning._sweeps import run_sweeps, span_bounds
 from policylab.planning.bellman import DEFAULT_TIE_TOL, _policy_matrix, _q, greedy_policy
-from policylab.planning.evaluation import solve_policy_system
+from policylab.planning.evaluation import _matvec, solve_policy_system
 from policylab.planning.result import PlanningResult
 
 if TYPE_CHECKING:
@@ -111,17 +115,10 @@ def value_iteration(
         _require_episodic(mdp, "value iteration")
     start = np.zeros(mdp.n_states) if v0 is None else check_v(mdp, v0, "v0").copy()
     start[mdp.terminal] = 0.0
-    S, A = mdp.n_states, mdp.n_actions
-    tm = mdp.transition_matrix
-    rm = _masked_reward(mdp)
     term = mdp.terminal
 
     def sync(v: NDArray[np.float64]) -> NDArray[np.float64]:
-        q = np.asarray(tm @ v).reshape(S, A)
-        q *= g
-        q += rm
-        out: NDArray[np.float64] = q.max(axis=1)
-        out[term] = 0.0
+        out, _ = optimality_sweep(mdp, g, v)
         return out
 
     def gs(v: NDArray[np.float64]) -> float:
@@ -151,6 +148,13 @@ def value_iteration(
         error_bound=out.error_bound,
         seconds=time.perf_counter() - t0,
     )
+
+
+def _one_hot(mdp: FiniteMDP, actions: NDArray[np.int64]) -> NDArray[np.float64]:
+    w = np.zeros((mdp.n_states, mdp.n_actions))
+    live = np.flatnonzero(~mdp.terminal)
+    w[live, actions[live]] = 1.0
+    return w
 
 
 def proper_policy(mdp: FiniteMDP) -> Policy:
@@ -231,7 +235,7 @@ def policy_iteration(
     check_positive_int(max_iter, "max_iter")
     if evaluation not in ("exact", "iterative"):
         raise InvalidArgumentError(f"evaluation must be 'exact' or 'iterative'; got {evaluation!r}")
-    S, A = mdp.n_states, mdp.n_actions
+    S = mdp.n_states
     live = ~mdp.terminal
     R = mdp.expected_reward
     if policy is not None:
@@ -241,6 +245,7 @@ def policy_iteration(
     else:
         probs = np.asarray(greedy_policy(mdp, mdp.expected_reward).probs)
     current = probs.argmax(axis=1)
+    rows = np.arange(S)
     stochastic_start = first_stochastic = bool(np.any((probs > 0).sum(axis=1)[live] > 1))
     eval_tol = None if tol is None else check_tol(tol)
     v = np.zeros(S)
@@ -250,28 +255,41 @@ def policy_iteration(
     bound: float | None = 0.0
     residual = 0.0
     for _ in range(max_iter):
+        acts: NDArray[np.int64] | None
         if stochastic_start:
-            w = probs
             stochastic_start = False
+            acts, p_pi = None, _policy_matrix(mdp, probs)
+            r_pi = np.einsum("sa,sa->s", probs, R)
         else:
-            w = np.zeros((S, A))
-            w[np.flatnonzero(live), current[live]] = 1.0
-        p_pi = _policy_matrix(mdp, w)
-        r_pi = np.einsum("sa,sa->s", w, R)
+            acts, p_pi = current.copy(), None
+            r_pi = R[rows, current]
+            r_pi[mdp.terminal] = 0.0
         if evaluation == "exact":
             v, info = solve_policy_system(
-                mdp, p_pi, r_pi, g, solver=solver, tol=eval_tol, x0=v if history else None
+                mdp,
+                p_pi,
+                r_pi,
+                g,
+                solver=solver,
+                tol=eval_tol,
+                x0=v if history else None,
+                actions=acts,
             )
             residual = float(info["residual"])
             bound = info["error_bound"]
         else:
             if g == 1.0:
-                require_terminal_reachable(mdp, p_pi, "a policy met by policy iteration")
+                graph = p_pi if p_pi is not None else _policy_matrix(mdp, _one_hot(mdp, current))
+                require_terminal_reachable(mdp, graph, "a policy met by policy iteration")
 
             def sync(
-                x: NDArray[np.float64], p_pi: sp.csr_array = p_pi, r_pi: NDArray[np.float64] = r_pi
+                x: NDArray[np.float64],
+                p_pi: sp.csr_array | None = p_pi,
+                acts: NDArray[np.int64] | None = acts,
+                r_pi: NDArray[np.float64] = r_pi,
             ) -> NDArray[np.float64]:
-                return np.asarray(r_pi + g * (p_pi @ x))
+                px = policy_matvec(mdp, acts, x) if acts is not None else _matvec(p_pi, x)
+                return np.asarray(r_pi + g * px)
 
             with warnings.catch_warnings():
                 warnings.simplefilter("error", NotConvergedWarning)
@@ -362,11 +380,9 @@ def modified_policy_iteration(
     m = check_positive_int(m, "m", minimum=0)
     if g == 1.0:
         _require_episodic(mdp, "modified policy iteration")
-    S, A = mdp.n_states, mdp.n_actions
+    S = mdp.n_states
     live = ~mdp.terminal
     has_terminal = not bool(live.all())
-    tm = mdp.transition_matrix
-    rm = _masked_reward(mdp)
     R = mdp.expected_reward
     v = np.zeros(S) if v0 is None else check_v(mdp, v0, "v0").copy()
     v[mdp.terminal] = 0.0
@@ -376,12 +392,7 @@ def modified_policy_iteration(
     residual = np.inf
     rows = np.arange(S)
     for _ in range(max_iter):
-        q = np.asarray(tm @ v).reshape(S, A)
-        q *= g
-        q += rm
-        act = q.argmax(axis=1)
-        tv = q[rows, act]
-        tv[mdp.terminal] = 0.0
+        tv, act = optimality_sweep(mdp, g, v)
         d = tv - v
         residual = float(np.abs(d).max())
         history.append(residual)
@@ -401,12 +412,10 @@ def modified_policy_iteration(
             break
         v = tv
         if m:
-            sel = rows * A + act
-            p_pi = sp.csr_array(tm[sel])
-            r_pi = R[rows, act]
+            r_pi = R[rows, np.maximum(act, 0)]
             r_pi[mdp.terminal] = 0.0
             for _k in range(m):
-                v = r_pi + g * (p_pi @ v)
+                v = r_pi + g * policy_matvec(mdp, act, v)
     if not converged:
         warnings.warn(
             f"modified policy iteration stopped after {len(history)} improvements (max_iter): "

@@ -5,14 +5,18 @@ non-terminal states (terminal states have value 0):
 
 * small systems (``solver="direct"``, the default below :data:`DIRECT_MAX_STATES`
   non-terminal states): a sparse LU factorisation (SuperLU), exact to rounding;
-* large systems (``solver="krylov"``): restarted GMRES, warm-started where a guess is
-  known, with iterative refinement until the residual satisfies
-  ||r_pi - (I - gamma P_pi) v||_inf <= (1 - gamma) * tol. Because ||(I - gamma
-  P_pi)^{-1}||_inf <= 1 / (1 - gamma) for a (sub)stochastic P_pi, this guarantees
-  max_s |v(s) - v_pi(s)| <= tol. A direct LU of a random sparse graph fills in badly
-  (it is near-dense at 10^4 states), whereas GMRES needs a few dozen sparse products
-  there, since the eigenvalues of such a P_pi other than 1 are small. If GMRES stalls
-  the solver falls back to the LU.
+* large systems (``solver="auto"`` above that size, gamma < 1): synchronous sweeps
+  v <- r_pi + gamma P_pi v, warm-started, stopped by MacQueen's bounds (the same rule
+  as value iteration) as soon as max_s |v(s) - v_pi(s)| <= tol is proven; the
+  default tol is 1e-10 times the value scale max|r| / (1 - gamma). On well-mixing
+  chains (random sparse graphs, whose P_pi has small eigenvalues besides 1) the
+  error span shrinks by gamma |lambda_2| per sweep, so a few dozen products suffice;
+  a direct LU of such a graph fills in badly (near-dense at 10^4 states).
+* slowly mixing chains (the sweeps have not finished after 60 products), gamma = 1,
+  or ``solver="krylov"``: restarted GMRES on the matrix-free operator, with
+  iterative refinement until ||r_pi - (I - gamma P_pi) v||_inf <= (1 - gamma) tol,
+  which guarantees max_s |v(s) - v_pi(s)| <= tol since ||(I - gamma P_pi)^{-1}||_inf
+  <= 1 / (1 - gamma) for a (sub)stochastic P_pi. If GMRES stalls, the sparse LU.
 
 With gamma = 1 the system is singular unless the policy reaches a terminal state with
 probability 1 from every state; the states from which it does not are named in the
@@ -38,8 +42,8 @@ from policylab.planning._checks import (
     check_v,
     require_terminal_reachable,
 )
-from policylab.planning._kernels import gauss_seidel_expectation_sweep
-from policylab.planning._sweeps import run_sweeps
+from policylab.planning._kernels import gauss_seidel_expectation_sweep, policy_matvec
+from policylab.planning._sweeps import run_sweeps, span_bounds
 from policylab.planning.bellman import _policy_matrix, _q
 from policylab.planning.result import PlanningResult
 
@@ -60,24 +64,30 @@ KRYLOV_RTOL = 1e-10
 
 def solve_policy_system(
     mdp: FiniteMDP,
-    p_pi: sp.csr_array,
+    p_pi: sp.csr_array | None,
     r_pi: NDArray[np.float64],
     gamma: float,
     *,
     solver: str = "auto",
     tol: float | None = None,
     x0: NDArray[np.float64] | None = None,
+    actions: NDArray[np.int64] | None = None,
 ) -> tuple[NDArray[np.float64], dict[str, Any]]:
-    """Solve v = r_pi + gamma P_pi v on the non-terminal states (v = 0 on terminal states).
+    """Solve v = r_pi + gamma P_pi v, with v = 0 on terminal states.
+
+    The system is written over all states; the rows of terminal states are v(s) = 0
+    (P_pi has no entries there), so no submatrix is ever extracted.
 
     Args:
-        mdp: The MDP (for its terminal mask and labels in errors).
-        p_pi: P_pi, sparse S x S.
+        mdp: The MDP (for its outcome table, terminal mask and labels in errors).
+        p_pi: P_pi, sparse S x S; may be None when ``actions`` is given.
         r_pi: r_pi, (S,).
         gamma: Discount rate.
         solver: ``"auto"``, ``"direct"`` (sparse LU) or ``"krylov"`` (GMRES).
         tol: Sup-norm accuracy for GMRES (default: 1e-10 times the value scale).
         x0: A starting guess for GMRES (S,).
+        actions: For a deterministic policy, its action index per state: GMRES then
+            multiplies by P_pi straight from the outcome table (no matrix is built).
 
     Returns:
         v (S,) and an info dict (``solver``, ``residual``, ``error_bound``,
@@ -89,56 +99,126 @@ def solve_policy_system(
     """
     if solver not in ("auto", "direct", "krylov"):
         raise InvalidArgumentError(f"solver must be 'auto', 'direct' or 'krylov'; got {solver!r}")
-    if gamma == 1.0:
-        require_terminal_reachable(mdp, p_pi, "the policy")
-    live = ~mdp.terminal
     S = mdp.n_states
-    if live.all():
-        P, b = p_pi, r_pi
-        idx = None
-    else:
-        idx = np.flatnonzero(live)
-        P = sp.csr_array(p_pi[idx][:, idx])
-        b = r_pi[idx]
-    n = P.shape[0]
-    M = sp.csr_array(sp.eye_array(n, format="csr") - gamma * P)
-    v = np.zeros(S)
+    if p_pi is None and actions is None:
+        raise InvalidArgumentError("solve_policy_system needs p_pi or actions")
+
+    def matrix() -> sp.csr_array:
+        if p_pi is not None:
+            return p_pi
+        assert actions is not None
+        w = np.zeros((S, mdp.n_actions))
+        live_idx = np.flatnonzero(~mdp.terminal)
+        w[live_idx, actions[live_idx]] = 1.0
+        return _policy_matrix(mdp, w)
+
+    if gamma == 1.0:
+        require_terminal_reachable(mdp, matrix(), "the policy")
+    b = np.array(r_pi, dtype=np.float64)
+    b[mdp.terminal] = 0.0
     info: dict[str, Any] = {}
-    use_direct = solver == "direct" or (solver == "auto" and n <= DIRECT_MAX_STATES)
+    use_direct = solver == "direct" or (
+        solver == "auto" and int((~mdp.terminal).sum()) <= DIRECT_MAX_STATES
+    )
     x: NDArray[np.float64] | None = None
     if not use_direct:
-        scale = float(np.abs(b).max(initial=0.0)) / max(1.0 - gamma, 1e-12)
-        target_err = tol if tol is not None else KRYLOV_RTOL * max(1.0, scale)
-        target_res = target_err * (1.0 - gamma) if gamma < 1.0 else target_err * 1e-3
-        guess = None if x0 is None else (x0 if idx is None else x0[idx])
-        x, its, res = _gmres_refined(M, b, guess, target_res)
-        if res <= target_res:
-            info.update(
-                solver="krylov (GMRES)",
-                krylov_iterations=its,
-                residual=res,
-                error_bound=res / (1.0 - gamma) if gamma < 1.0 else None,
-            )
+        if actions is not None:
+            acts = np.ascontiguousarray(actions, dtype=np.int64)
+
+            def mv(y: NDArray[np.float64]) -> NDArray[np.float64]:
+                return np.asarray(y - gamma * policy_matvec(mdp, acts, y))
         else:
-            x = None
-            info["krylov_fallback"] = f"GMRES stalled at residual {res:.3g}; used sparse LU"
+            P = matrix()
+
+            def mv(y: NDArray[np.float64]) -> NDArray[np.float64]:
+                return np.asarray(y - gamma * (P @ y))
+
+        op = spla.LinearOperator((S, S), matvec=mv, dtype=np.float64)
+        r_max = float(np.abs(b).max(initial=0.0))
+        if gamma < 1.0:
+            # ||v - v_pi||_inf <= ||residual||_inf / (1 - gamma)
+            target_err = tol if tol is not None else KRYLOV_RTOL * max(1.0, r_max / (1 - gamma))
+            target_res = target_err * (1.0 - gamma)
+        else:
+            # no a-priori bound at gamma = 1: ask for a tiny relative residual instead
+            target_res = (tol if tol is not None else KRYLOV_RTOL) * 1e-2 * max(1.0, r_max)
+        start = x0
+        if solver == "auto" and gamma < 1.0:
+            # Sweeps with MacQueen's extrapolation first: on well-mixing chains (random
+            # graphs) they reach the target in a few dozen cheap products, with a proof.
+            xs, sweeps, bound = _macqueen_sweeps(mv, b, x0, ~mdp.terminal, gamma, target_err)
+            if bound is not None:
+                x = xs
+                res = float(np.abs(b - mv(x)).max(initial=0.0))
+                info.update(
+                    solver="sweeps (MacQueen bounds)",
+                    sweeps=sweeps,
+                    residual=res,
+                    error_bound=bound,
+                )
+            start = xs  # slow mixing: hand the sweeps' estimate to GMRES
+        if x is None:
+            xg, its, res = _gmres_refined(op, b, start, target_res)
+            if res <= target_res:
+                x = xg
+                info.update(
+                    solver="krylov (GMRES)",
+                    krylov_iterations=its,
+                    residual=res,
+                    error_bound=res / (1.0 - gamma) if gamma < 1.0 else None,
+                )
+            else:
+                info["krylov_fallback"] = f"GMRES stalled at residual {res:.3g}; used sparse LU"
     if x is None:
-        x = np.asarray(spla.spsolve(sp.csc_array(M), b), dtype=np.float64)
+        M = sp.csc_array(sp.eye_array(S, format="csr") - gamma * matrix())
+        x = np.asarray(spla.spsolve(M, b), dtype=np.float64)
         res = float(np.abs(b - M @ x).max(initial=0.0))
         info.update(
             solver="direct (sparse LU)",
             residual=res,
             error_bound=res / (1.0 - gamma) if gamma < 1.0 else None,
         )
-    if idx is None:
-        v[:] = x
-    else:
-        v[idx] = x
-    return v, info
+    x[mdp.terminal] = 0.0
+    return x, info
+
+
+def _macqueen_sweeps(
+    mv: Any,
+    b: NDArray[np.float64],
+    x0: NDArray[np.float64] | None,
+    live: NDArray[np.bool_],
+    gamma: float,
+    target: float,
+    max_sweeps: int = 60,
+) -> tuple[NDArray[np.float64], int, float | None]:
+    """Sweeps x <- b + gamma P x stopped by MacQueen's bound (see ``span_bounds``).
+
+    ``mv(y) = y - gamma P y``, so b + gamma P x = b + x - mv(x). Returns the estimate,
+    the sweeps used and the proven sup-norm error bound, or None for the bound if
+    ``max_sweeps`` did not suffice (the chain mixes slowly; GMRES takes over).
+    """
+    x = np.zeros_like(b) if x0 is None else np.array(x0, dtype=np.float64)
+    has_terminal = not bool(live.all())
+    for k in range(1, max_sweeps + 1):
+        tx = b + x - mv(x)
+        tx[~live] = 0.0
+        shift, bound = span_bounds((tx - x)[live], gamma, has_terminal)
+        if bound <= target:
+            tx[live] += shift
+            return tx, k, bound
+        x = tx
+    return x, max_sweeps, None
+
+
+def _matvec(p: sp.csr_array | None, x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """P @ x for a matrix that the caller knows to be present."""
+    if p is None:
+        raise InvalidArgumentError("internal: a policy matrix was expected")
+    return np.asarray(p @ x, dtype=np.float64)
 
 
 def _gmres_refined(
-    M: sp.csr_array, b: NDArray[np.float64], x0: NDArray[np.float64] | None, target: float
+    M: spla.LinearOperator, b: NDArray[np.float64], x0: NDArray[np.float64] | None, target: float
 ) -> tuple[NDArray[np.float64], int, float]:
     """GMRES with iterative refinement until ||b - M x||_inf <= target (or 6 rounds)."""
     x = np.zeros_like(b) if x0 is None else x0.astype(np.float64, copy=True)
@@ -251,7 +331,8 @@ def evaluate_policy(
         raise InvalidArgumentError(f"method must be 'exact' or 'iterative'; got {method!r}")
     start = np.zeros(mdp.n_states) if v0 is None else check_v(mdp, v0, "v0").copy()
     start[mdp.terminal] = 0.0
-    p_pi = _policy_matrix(mdp, pi.probs)
+    acts = np.asarray(pi.probs.argmax(axis=1), dtype=np.int64) if pi.is_deterministic else None
+    p_pi = None if acts is not None else _policy_matrix(mdp, pi.probs)
     r_pi = np.einsum("sa,sa->s", pi.probs, mdp.expected_reward)
     if method == "exact":
         v, info = solve_policy_system(
@@ -262,6 +343,7 @@ def evaluate_policy(
             solver=solver,
             tol=None if tol is None else check_tol(tol),
             x0=start if v0 is not None else None,
+            actions=acts,
         )
         if not return_result:
             return v
@@ -282,11 +364,13 @@ def evaluate_policy(
     t = 1e-10 if tol is None else check_tol(tol)
     check_positive_int(max_iter, "max_iter")
     if g == 1.0:
-        require_terminal_reachable(mdp, p_pi, "the policy")
+        graph = p_pi if p_pi is not None else _policy_matrix(mdp, pi.probs)
+        require_terminal_reachable(mdp, graph, "the policy")
     probs = np.asarray(pi.probs)
 
     def sync(v: NDArray[np.float64]) -> NDArray[np.float64]:
-        out = r_pi + g * (p_pi @ v)
+        pv = policy_matvec(mdp, acts, v) if acts is not None else _matvec(p_pi, v)
+        out = r_pi + g * pv
         out[mdp.terminal] = 0.0
         return np.asarray(out)
 

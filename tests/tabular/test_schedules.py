@@ -27,7 +27,7 @@ def test_parse_round_trip_and_kernel_function():
 
 @pytest.mark.parametrize("bad", ["", "abc", "exp:1", "linear:1,2", "exp:1,1.5"])
 def test_parse_errors_are_clear(bad):
-    with pytest.raises(InvalidArgumentError, match="schedule|decay"):
+    with pytest.raises(InvalidArgumentError, match=r"schedule|decay"):
         Schedule.parse(bad)
 
 

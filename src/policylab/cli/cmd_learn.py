@@ -35,11 +35,19 @@ _TYPES: dict[str, Any] = {
 
 
 def _resolve(name: str, gamma: float | None, use_env: bool) -> tuple[Any, Any]:
-    """(problem for the learner, exact model or None) from a CLI problem name."""
+    """(problem for the learner, exact model or None) from a CLI problem name.
+
+    A built-in problem or a Gymnasium id with a model ``P`` gives a FiniteMDP (the
+    compiled path; with ``--env`` its Gymnasium env and the model for scoring); a
+    Gymnasium id without ``P`` gives the env (the general path), with policylab's exact
+    model where one is known (Blackjack-v1).
+    """
     import gymnasium as gym
+    from gymnasium import spaces
 
     from policylab.cli.common import load_problem
     from policylab.envs import MDPEnv
+    from policylab.mdp.finite import FiniteMDP
     from policylab.problems.registry import _REGISTRY, get_problem
 
     key = name.strip().lower().replace("_", "-")
@@ -49,24 +57,28 @@ def _resolve(name: str, gamma: float | None, use_env: bool) -> tuple[Any, Any]:
         return (MDPEnv(mdp) if use_env else mdp), mdp
     if name in KNOWN_MODELS:
         model = get_problem(KNOWN_MODELS[name])
-        return gym.make(name, sab=True) if name == "Blackjack-v1" else gym.make(name), model
-    if "-v" in name:
-        try:
-            return load_problem(name, gamma), None
-        except (UnknownProblemError, InvalidArgumentError):
-            raise
-        except Exception:
-            pass
+        model = model if gamma is None else model.with_gamma(gamma)
+        env = gym.make(name, sab=True) if name == "Blackjack-v1" else gym.make(name)
+        return env, model
+    if "-v" not in name:
+        return load_problem(name, gamma), None  # raises UnknownProblemError with the list
     try:
-        mdp = load_problem(name, gamma)
-        return (MDPEnv(mdp) if use_env else mdp), mdp
-    except UnknownProblemError:
-        if "-v" not in name:
-            raise
-    try:
-        return gym.make(name), None
-    except Exception as e:  # gymnasium's own error types
-        raise UnknownProblemError(f"unknown problem {name!r} ({type(e).__name__}: {e})") from None
+        env = gym.make(name)
+    except Exception as e:  # gymnasium raises its own error types for unknown ids
+        raise UnknownProblemError(
+            f"unknown problem {name!r} ({type(e).__name__}: {e}); known problems: "
+            f"{', '.join(sorted(_REGISTRY))}, or a Gymnasium id"
+        ) from None
+    if getattr(env.unwrapped, "P", None) is not None:
+        mdp = FiniteMDP.from_gymnasium(env, gamma=1.0 if gamma is None else gamma, name=name)
+        return (env if use_env else mdp), mdp
+    space = env.observation_space
+    if not isinstance(space, (spaces.Discrete, spaces.Tuple, spaces.MultiDiscrete)):
+        raise InvalidArgumentError(
+            f"{name} observes {space}; tabular learners need discrete or hashable "
+            "observations (Discrete, Tuple of Discrete, MultiDiscrete)"
+        )
+    return env, None
 
 
 def _named_policy(problem_name: str, mdp: Any, policy: str | None) -> Any:
@@ -118,7 +130,8 @@ def _show(res: Any, max_rows: int) -> None:
         console.print(f"[dim]... {n_live - shown} more states (raise --max-rows)[/]")
     if res.truncated:
         err_console.print(
-            f"[yellow]{res.truncated} episodes hit the step limit and were not used (raise --max-steps)[/]"
+            f"[yellow]{res.truncated} episodes hit the step limit and were not used "
+            "(raise --max-steps)[/]"
         )
     if res.error is None:
         console.print("[dim]No exact model known: no error against the exact answer.[/]")
@@ -150,8 +163,9 @@ def _make_command(spec: Any) -> Callable[..., None]:
         json_out = kw.pop("json_out")
         plot = kw.pop("plot")
         max_rows = kw.pop("max_rows")
+        episodes = kw.pop("episodes")
         args: dict[str, Any] = {
-            "episodes": kw.pop("episodes") or spec.default_episodes,
+            "episodes": spec.default_episodes if episodes is None else episodes,
             "seed": kw.pop("seed"),
             "checkpoints": kw.pop("checkpoints"),
             "max_steps": kw.pop("max_steps"),
@@ -197,9 +211,10 @@ def _make_command(spec: Any) -> Callable[..., None]:
             annotation=Annotated[
                 str,
                 typer.Argument(
-                    help="Problem: a built-in name (slippery-gridworld, blackjack, ...), a Gymnasium id with a "
-                    "model P (FrozenLake-v1), or any Gymnasium id with discrete or hashable observations "
-                    "(Blackjack-v1; learned by the general Python loop).",
+                    help="Problem: a built-in name (slippery-gridworld, blackjack, ...), a "
+                    "Gymnasium id with a model P (FrozenLake-v1), or any Gymnasium id with "
+                    "discrete or hashable observations (Blackjack-v1; learned by the general "
+                    "Python loop).",
                     show_default=False,
                 ),
             ],

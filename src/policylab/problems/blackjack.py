@@ -26,7 +26,8 @@ from policylab.problems.registry import register_problem
 __all__ = ["BLACKJACK_CARDS", "blackjack", "blackjack_stick_on_20_policy"]
 
 #: Card values of the infinite deck and their probabilities.
-BLACKJACK_CARDS: tuple[tuple[int, float], ...] = tuple((c, 1 / 13) for c in range(1, 10)) + (
+BLACKJACK_CARDS: tuple[tuple[int, float], ...] = (
+    *((c, 1 / 13) for c in range(1, 10)),
     (10, 4 / 13),
 )
 

@@ -3,11 +3,11 @@
 Public names::
 
     import policylab as pl
-    from policylab.tabular import Schedule
-    res = pl.tabular.mc_prediction(pl.problems.slippery_gridworld(), episodes=10_000, seed=0)
+    from policylab.tabular import Schedule, mc_control, mc_off_policy, mc_prediction
+    res = mc_prediction(pl.problems.slippery_gridworld(), episodes=10_000, seed=0)
     res.q, res.v, res.policy, res.checkpoints, res.error_max, res.error_rms
-    res = pl.tabular.mc_control(mdp, episodes=100_000, epsilon=Schedule.inverse(), seed=0)
-    res = pl.tabular.mc_off_policy(mdp, target=pi, weighted=True, seed=0)
+    res = mc_control(mdp, episodes=100_000, seed=0)     # GLIE epsilon-greedy
+    res = mc_off_policy(mdp, target=pi, weighted=True, seed=0)
 
 Every learner takes ``problem`` = a :class:`~policylab.FiniteMDP` (the fast path:
 episodes simulated and updates applied in compiled numba kernels) or a Gymnasium env
@@ -23,8 +23,9 @@ Layout
                outcome table, epsilon-greedy action choice, :func:`generate_episode`.
 ``truth``      :class:`GroundTruth`: exact v_pi/q_pi or v*/q* (from policylab.planning)
                and the error of an estimate (max, RMS, share of optimal greedy actions).
-``common``     argument checks, checkpoints, the :class:`~policylab.tabular.common.Recorder`
-               of the error curve, progress bars, the general path's ``StateIndex``.
+``common``     ``run_seeds`` (several seeds at once, on threads), argument checks,
+               checkpoints, the :class:`~policylab.tabular.common.Recorder` of the
+               error curve, progress bars, the general path's ``StateIndex``.
 ``result``     :class:`LearnResult`, the one result type (``to_json()`` is the CLI's
                ``--json``).
 ``registry``   the algorithm registry ``policylab learn ALGO PROBLEM`` reads.
@@ -58,7 +59,7 @@ How to add an algorithm (e.g. SARSA, in ``policylab/tabular/td.py``)
    ``kind="prediction"``) are added by the command.
 """
 
-from policylab.tabular.common import Recorder, StateIndex, checkpoint_episodes
+from policylab.tabular.common import Recorder, StateIndex, checkpoint_episodes, run_seeds
 from policylab.tabular.mc import mc_control, mc_off_policy, mc_prediction
 from policylab.tabular.registry import (
     AlgorithmSpec,
@@ -101,6 +102,7 @@ __all__ = [
     "mc_off_policy",
     "mc_prediction",
     "register_algorithm",
+    "run_seeds",
     "schedule_value",
     # temporal-difference learning (policylab.tabular.td)
     "SeedRuns",

@@ -34,6 +34,8 @@ from typing import TYPE_CHECKING, Any
 import numba as nb
 import numpy as np
 
+from policylab.tabular.schedules import schedule_value
+
 if TYPE_CHECKING:
     from numpy.typing import NDArray
 
@@ -239,17 +241,8 @@ def epsilon_greedy_action(
     Draws: one uniform u (skipped when epsilon is 0); if u < epsilon a uniform action
     of A(s); else a greedy action, ties broken uniformly (one more draw only if tied).
     """
-    n_avail = 0
-    for a in range(q_row.shape[0]):
-        if mask_row[a]:
-            n_avail += 1
     if epsilon > 0.0 and rand_uniform(state) < epsilon:
-        k = rand_below(state, n_avail)
-        for a in range(q_row.shape[0]):
-            if mask_row[a]:
-                if k == 0:
-                    return a
-                k -= 1
+        return uniform_action(mask_row, state)
     best_q = -np.inf
     n_best = 0
     for a in range(q_row.shape[0]):
@@ -309,6 +302,8 @@ def generate_episode(
     buf_a: NDArray[np.int64],
     buf_r: NDArray[np.float64],
     buf_b: NDArray[np.float64],
+    eps_params: NDArray[np.float64],
+    visits: NDArray[np.float64],
 ) -> int:  # pragma: no cover - compiled
     """Simulate one episode into the buffers; return its length T (negative if truncated).
 
@@ -337,6 +332,10 @@ def generate_episode(
         buf_a: (max_steps,) actions out.
         buf_r: (max_steps,) rewards out.
         buf_b: (max_steps,) behaviour probabilities out.
+        eps_params: With a non-empty ``visits``: the epsilon schedule, evaluated per
+            state at its visit count + 1 (GLIE by state, epsilon capped at 1) instead
+            of the per-episode ``epsilon``.
+        visits: (S,) visit counts for per-state epsilon, or an empty array.
     """
     n_actions = mask.shape[1]
     max_steps = buf_a.shape[0]
@@ -353,8 +352,11 @@ def generate_episode(
             a = sample_action(pi[s], rng)
             b = pi[s, a]
         else:
-            a = epsilon_greedy_action(q[s], mask[s], epsilon, rng)
-            b = epsilon_greedy_prob(q[s], mask[s], epsilon, a)
+            eps = epsilon
+            if visits.shape[0] > 0:
+                eps = min(1.0, schedule_value(eps_params, visits[s] + 1.0))
+            a = epsilon_greedy_action(q[s], mask[s], eps, rng)
+            b = epsilon_greedy_prob(q[s], mask[s], eps, a)
         k = sample_next(indptr, probs, s * n_actions + a, rng)
         buf_a[t] = a
         buf_b[t] = b

@@ -1,0 +1,48 @@
+import numpy as np
+import pytest
+
+import policylab as pl
+from policylab.exceptions import InvalidArgumentError, UnknownLabelError
+from policylab.tabular import GroundTruth, StateIndex, checkpoint_episodes
+from policylab.tabular.kernels import rand_uniform, rng_states
+
+
+def test_checkpoints_log_spaced_and_end_at_episodes():
+    c = checkpoint_episodes(1000, 10)
+    assert c[0] == 1 and c[-1] == 1000 and np.all(np.diff(c) > 0) and len(c) <= 10
+    assert list(checkpoint_episodes(3, 50)) == [1, 2, 3]
+    with pytest.raises(InvalidArgumentError):
+        checkpoint_episodes(10, 0)
+
+
+def test_state_index_kinds():
+    d = StateIndex.discrete(3)
+    assert d(np.int64(2)) == 2 and d.labels == (0, 1, 2)
+    with pytest.raises(InvalidArgumentError):
+        d(3)
+    g = StateIndex.growing()
+    assert g((4, np.int64(1), 0)) == 0 and g((5, 1, 0)) == 1 and g((4, 1, 0)) == 0
+    assert g.labels == ((4, 1, 0), (5, 1, 0))
+    f = StateIndex.of_labels([(4, 1, False), (4, 1, True)])
+    assert f((4, 1, 1)) == 1  # Gymnasium's int flag finds the bool label
+    with pytest.raises(UnknownLabelError):
+        f((9, 9, 0))
+
+
+def test_rng_states_reproducible_and_uniform():
+    a, b = rng_states(5, 2), rng_states(5, 2)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a[0], a[1])
+    u = np.array([rand_uniform(a[0]) for _ in range(20_000)])
+    assert u.min() >= 0 and u.max() < 1 and abs(u.mean() - 0.5) < 0.01
+
+
+def test_ground_truth_errors_hand_computed():
+    mdp = pl.problems.slippery_gridworld()
+    truth = GroundTruth.control(mdp)
+    e_max, e_rms, share = truth.errors(truth.q, truth.v)
+    assert e_max == 0 and e_rms == 0 and share == 1.0
+    q = truth.q + np.where(mdp.action_mask, 1.0, 0.0)
+    e_max, e_rms, share = truth.errors(q, None)
+    assert e_max == pytest.approx(1.0) and e_rms == pytest.approx(1.0) and share == 1.0
+    assert np.isnan(GroundTruth.control(mdp, on="v").errors(None, truth.v)[2])

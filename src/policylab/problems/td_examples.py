@@ -1,8 +1,12 @@
-"""Sutton & Barto's chapter 6 examples: the random walk, the windy gridworld, cliff walking
-and the maximisation-bias MDP, each with the exact answer the tests hold learners to.
+"""Sutton & Barto's chapter 6 examples, each with the exact answer learners are held to.
+
+The random walk (Example 6.2), the windy gridworld (6.5), cliff walking (6.6) and the
+maximisation-bias MDP (6.7).
 """
 
 from __future__ import annotations
+
+from collections.abc import Hashable
 
 import numpy as np
 
@@ -47,7 +51,7 @@ def random_walk(n_states: int = 5, left_reward: float = 0.0, gamma: float = 1.0)
     n = int(n_states)
     names = [chr(ord("A") + i) for i in range(n)] if n <= 26 else [str(i + 1) for i in range(n)]
     chain = ["left", *names, "right"]
-    dynamics: dict[str, dict[str, list[tuple[float, str, float]]]] = {}
+    dynamics: dict[Hashable, dict[Hashable, list[tuple[float, Hashable, float]]]] = {}
     for i in range(1, n + 1):
         lo, hi = chain[i - 1], chain[i + 1]
         r_lo = float(left_reward) if lo == "left" else 0.0
@@ -56,8 +60,12 @@ def random_walk(n_states: int = 5, left_reward: float = 0.0, gamma: float = 1.0)
     dynamics = {"left": {}, **dynamics, "right": {}}
     x = [float("nan"), *[float(i) for i in range(1, n + 1)], float("nan")]
     return FiniteMDP.from_dynamics(
-        dynamics, gamma=gamma, terminal=("left", "right"), actions=["walk"],
-        initial=names[n // 2], name="random-walk",
+        dynamics,
+        gamma=gamma,
+        terminal=("left", "right"),
+        actions=["walk"],
+        initial=names[n // 2],
+        name="random-walk",
         meta={"x": x, "xlabel": "state", "xticklabels": names},
     )
 
@@ -129,8 +137,14 @@ WINDY_GRID = (
 WINDY_WIND = (0, 0, 0, 1, 1, 1, 2, 2, 1, 0)
 
 _KING_MOVES: dict[str, Cell] = {
-    "up": (-1, 0), "down": (1, 0), "left": (0, -1), "right": (0, 1),
-    "up-left": (-1, -1), "up-right": (-1, 1), "down-left": (1, -1), "down-right": (1, 1),
+    "up": (-1, 0),
+    "down": (1, 0),
+    "left": (0, -1),
+    "right": (0, 1),
+    "up-left": (-1, -1),
+    "up-right": (-1, 1),
+    "down-left": (1, -1),
+    "down-right": (1, 1),
 }
 
 
@@ -159,7 +173,10 @@ def windy_gridworld(king_moves: bool = False, gamma: float = 1.0) -> FiniteMDP:
 
 
 def maximization_bias(
-    n_actions_b: int = 10, mean: float = -0.1, std: float = 1.0, n_points: int = 8,
+    n_actions_b: int = 10,
+    mean: float = -0.1,
+    std: float = 1.0,
+    n_points: int = 8,
     gamma: float = 1.0,
 ) -> FiniteMDP:
     """The small MDP of Example 6.7 that shows maximisation bias (Figure 6.5).
@@ -193,14 +210,18 @@ def maximization_bias(
     rewards = mean + std * nodes
     b_actions = [f"b{i + 1}" for i in range(int(n_actions_b))]
     outcomes = [(float(w), "end", float(r)) for w, r in zip(weights, rewards, strict=True)]
-    dynamics = {
+    dynamics: dict[Hashable, dict[Hashable, list[tuple[float, Hashable, float]]]] = {
         "A": {"right": [(1.0, "end", 0.0)], "left": [(1.0, "B", 0.0)]},
         "B": {a: list(outcomes) for a in b_actions},
         "end": {},
     }
     return FiniteMDP.from_dynamics(
-        dynamics, gamma=gamma, terminal=("end",), actions=["right", "left", *b_actions],
-        initial="A", name="maximization-bias",
+        dynamics,
+        gamma=gamma,
+        terminal=("end",),
+        actions=["right", "left", *b_actions],
+        initial="A",
+        name="maximization-bias",
     )
 
 

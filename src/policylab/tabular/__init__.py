@@ -70,7 +70,6 @@ from policylab.tabular.registry import (
 )
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, schedule_value
-from policylab.tabular.truth import GroundTruth, greedy_probs
 from policylab.tabular.td import (
     SeedRuns,
     double_q_learning,
@@ -79,12 +78,13 @@ from policylab.tabular.td import (
     n_step_sarsa,
     n_step_td,
     q_learning,
-    run_seeds,
     sarsa,
     sarsa_lambda,
+    seed_study,
     td0,
     td_lambda,
 )
+from policylab.tabular.truth import GroundTruth, greedy_probs
 
 __all__ = [
     "AlgorithmSpec",
@@ -93,28 +93,27 @@ __all__ = [
     "Option",
     "Recorder",
     "Schedule",
+    "SeedRuns",
     "StateIndex",
     "algorithm",
     "checkpoint_episodes",
+    "double_q_learning",
+    "dyna_q",
+    "expected_sarsa",
     "greedy_probs",
     "list_algorithms",
     "mc_control",
     "mc_off_policy",
     "mc_prediction",
-    "register_algorithm",
-    "run_seeds",
-    "schedule_value",
-    # temporal-difference learning (policylab.tabular.td)
-    "SeedRuns",
-    "double_q_learning",
-    "dyna_q",
-    "expected_sarsa",
     "n_step_sarsa",
     "n_step_td",
     "q_learning",
+    "register_algorithm",
     "run_seeds",
     "sarsa",
     "sarsa_lambda",
+    "schedule_value",
+    "seed_study",
     "td0",
     "td_lambda",
 ]

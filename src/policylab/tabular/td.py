@@ -12,7 +12,7 @@ Each learner takes a :class:`~policylab.FiniteMDP` (compiled numba kernels) or a
 Gymnasium env with ``Discrete`` observations and actions (the same kernel source run
 as plain Python, see :mod:`policylab.tabular.td_kernels`), and returns a
 :class:`~policylab.tabular.LearnResult` whose error curve is held against the exact
-v_pi (prediction) or q* (control) where the model is known. :func:`run_seeds` runs
+v_pi (prediction) or q* (control) where the model is known. :func:`seed_study` runs
 one learner for many seeds at once (the studies of Figures 6.2-6.5).
 
 Example::
@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
-from policylab.tabular import td_kernels as K
+from policylab.tabular import td_kernels as tdk
 from policylab.tabular.common import (
     Recorder,
     StateIndex,
@@ -44,6 +44,7 @@ from policylab.tabular.common import (
     progress_bar,
 )
 from policylab.tabular.kernels import KernelMDP, rng_states
+from policylab.tabular.mc import _as_env, _env_name
 from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule
@@ -63,9 +64,9 @@ __all__ = [
     "n_step_sarsa",
     "n_step_td",
     "q_learning",
-    "run_seeds",
     "sarsa",
     "sarsa_lambda",
+    "seed_study",
     "td0",
     "td_lambda",
 ]
@@ -98,59 +99,81 @@ class _Problem:
 def _resolve(problem: Any, model: FiniteMDP | None) -> _Problem:
     """The FiniteMDP (compiled path) or the Gymnasium env (general path) of ``problem``."""
     if is_finite_mdp(problem):
-        mdp: FiniteMDP = problem
+        fm: FiniteMDP = problem
         return _Problem(
-            mdp, None, None, mdp.n_states, mdp.n_actions,
-            np.ascontiguousarray(mdp.action_mask, dtype=np.bool_), mdp.states, mdp.actions,
-            np.asarray(mdp.terminal, dtype=bool), mdp.name,
+            fm,
+            None,
+            None,
+            fm.n_states,
+            fm.n_actions,
+            np.ascontiguousarray(fm.action_mask, dtype=np.bool_),
+            fm.states,
+            fm.actions,
+            np.asarray(fm.terminal, dtype=bool),
+            fm.name,
         )
-    import gymnasium as gym
     from gymnasium import spaces
 
-    env = gym.make(problem) if isinstance(problem, str) else problem
-    if not hasattr(env, "reset") or not hasattr(env, "step"):
-        raise InvalidArgumentError(f"problem must be a FiniteMDP or a Gymnasium env; got {type(problem).__name__}")
-    if not isinstance(env.action_space, spaces.Discrete):
-        raise InvalidArgumentError(f"TD learners need a Discrete action space; got {env.action_space}")
-    if not isinstance(env.observation_space, spaces.Discrete) or int(env.observation_space.start) != 0:
-        raise InvalidArgumentError(
-            f"TD learners need Discrete(n) observations numbered from 0; got {env.observation_space} "
-            "(wrap the env so that it emits state indices)"
-        )
+    env = _as_env(problem)  # the shared check: a Gymnasium env with Discrete actions
     base = getattr(env, "unwrapped", env)
-    mdp = model if model is not None else getattr(base, "mdp", None)
+    mdp: FiniteMDP | None = model if model is not None else getattr(base, "mdp", None)
     if mdp is None and getattr(base, "P", None) is not None:
-        from policylab.mdp.finite import FiniteMDP as _F
+        from policylab.mdp.finite import FiniteMDP
 
-        mdp = _F.from_gymnasium(base, name=_env_name(env))
-    S, A = int(env.observation_space.n), int(env.action_space.n)
-    spec = getattr(env, "spec", None)
+        mdp = FiniteMDP.from_gymnasium(base, name=_env_name(env))
     name = _env_name(env)
-    if mdp is not None:
-        if (mdp.n_states, mdp.n_actions) != (S, A):
-            raise InvalidArgumentError(
-                f"the model {mdp.name!r} has {mdp.n_states} states and {mdp.n_actions} actions; the "
-                f"env {name!r} has {S} and {A}"
-            )
-        return _Problem(
-            mdp, env, StateIndex.discrete(S), S, A,
-            np.ascontiguousarray(mdp.action_mask, dtype=np.bool_), mdp.states, mdp.actions,
-            np.asarray(mdp.terminal, dtype=bool), name,
+    A = int(env.action_space.n)
+    space = env.observation_space
+    if mdp is not None and mdp.n_actions != A:
+        raise InvalidArgumentError(
+            f"the model {mdp.name!r} has {mdp.n_actions} actions; the env {name!r} has {A}"
         )
-    del spec
+    if isinstance(space, spaces.Discrete) and int(space.start) == 0:
+        index = StateIndex.discrete(int(space.n))
+        if mdp is not None and mdp.n_states != len(index):
+            raise InvalidArgumentError(
+                f"the model {mdp.name!r} has {mdp.n_states} states; the env {name!r} has "
+                f"{len(index)}"
+            )
+    elif mdp is not None:  # observations are the model's state labels (Blackjack-v1's tuples)
+        index = StateIndex.of_labels(mdp.states)
+    else:
+        raise InvalidArgumentError(
+            "TD learners need Discrete(n) observations numbered from 0, or the env's model "
+            f"(model=) to index its observations; got {env.observation_space}"
+        )
+    S = len(index)
+    if mdp is not None:
+        return _Problem(
+            mdp,
+            env,
+            index,
+            S,
+            A,
+            np.ascontiguousarray(mdp.action_mask, dtype=np.bool_),
+            mdp.states,
+            mdp.actions,
+            np.asarray(mdp.terminal, dtype=bool),
+            name,
+        )
     return _Problem(
-        None, env, StateIndex.discrete(S), S, A, np.ones((S, A), dtype=np.bool_),
-        tuple(range(S)), tuple(range(A)), np.zeros(S, dtype=bool), name,
+        None,
+        env,
+        index,
+        S,
+        A,
+        np.ones((S, A), dtype=np.bool_),
+        tuple(range(S)),
+        tuple(range(A)),
+        np.zeros(S, dtype=bool),
+        name,
     )
 
 
-def _env_name(env: Any) -> str:
-    spec = getattr(env, "spec", None)
-    return str(getattr(spec, "id", None) or type(getattr(env, "unwrapped", env)).__name__)
-
-
-def _policy_table(P: _Problem, policy: Policy | Any | None) -> tuple[NDArray[np.float64], Policy | None]:
-    """pi as an (S, A) table for a prediction kernel, and the Policy for the exact v_pi."""
+def _policy_table(
+    P: _Problem, policy: Policy | Any | None
+) -> tuple[NDArray[np.float64], Policy | None]:
+    """Pi as an (S, A) table for a prediction kernel, and the Policy for the exact v_pi."""
     from policylab.mdp.policy import Policy
 
     if policy is None:
@@ -168,14 +191,20 @@ def _policy_table(P: _Problem, policy: Policy | Any | None) -> tuple[NDArray[np.
         table = np.asarray(policy, dtype=np.float64)
     except (TypeError, ValueError):
         raise InvalidPolicyError(
-            f"policy must be a Policy or an (S, A) array of probabilities; got {type(policy).__name__}"
+            "policy must be a Policy or an (S, A) array of probabilities; got "
+            f"{type(policy).__name__}"
         ) from None
     if P.mdp is not None:
         pol = Policy.from_array(P.mdp, table)
         return np.ascontiguousarray(pol.probs), pol
-    if table.shape != (P.n_states, P.n_actions) or np.any(table < 0) or not np.allclose(table.sum(axis=1), 1.0):
+    if (
+        table.shape != (P.n_states, P.n_actions)
+        or np.any(table < 0)
+        or not np.allclose(table.sum(axis=1), 1.0)
+    ):
         raise InvalidPolicyError(
-            f"policy must be an ({P.n_states}, {P.n_actions}) array whose rows sum to 1; got shape {table.shape}"
+            f"policy must be an ({P.n_states}, {P.n_actions}) array whose rows sum to 1; "
+            f"got shape {table.shape}"
         )
     return np.ascontiguousarray(table), None
 
@@ -191,7 +220,7 @@ class _Algo:
     rule: int = 0
     n: int = 1
     lam: float = 0.0
-    trace: int = K.TRACE_ACCUMULATING
+    trace: int = tdk.TRACE_ACCUMULATING
     planning: int = 0
 
 
@@ -208,6 +237,7 @@ class _Run:
     max_steps: int
     rng: NDArray[np.uint64]
     env: Any
+    model: tuple[Any, ...]
     w: NDArray[np.float64]
     episodes: int
     q2: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
@@ -221,25 +251,37 @@ class _Run:
 
     @classmethod
     def start(
-        cls, algo: _Algo, P: _Problem, pi: NDArray[np.float64], *, gamma: float, alpha: Schedule,
-        epsilon: Schedule, max_steps: int, rng: NDArray[np.uint64], env_seed: int,
-        episodes: int, init: float,
+        cls,
+        algo: _Algo,
+        P: _Problem,
+        pi: NDArray[np.float64],
+        *,
+        gamma: float,
+        alpha: Schedule,
+        epsilon: Schedule,
+        max_steps: int,
+        rng: NDArray[np.uint64],
+        env_seed: int,
+        episodes: int,
+        init: float,
     ) -> _Run:
         S, A = P.n_states, P.n_actions
         cols = A if algo.control else 1
         w = np.full((S, cols), float(init))
         w[P.terminal] = 0.0
-        if P.env is None:
+        if P.env is None:  # compiled path: the kernel samples the model's arrays
             assert P.mdp is not None  # the compiled path always has a model
-            env: Any = K.model_tuple(KernelMDP.of(P.mdp, gamma))
-        else:
-            env = K.GymStepper(P.env, P.index, env_seed)
-        run = cls(algo, P, pi, gamma, alpha, epsilon, max_steps, rng, env, w, episodes)
+            env: Any = None
+            model = tdk.model_tuple(KernelMDP.of(P.mdp, gamma))
+        else:  # general path: the kernel steps the Gymnasium env
+            env = tdk.GymStepper(P.env, P.index, env_seed)
+            model = tdk.model_tuple(None)
+        run = cls(algo, P, pi, gamma, alpha, epsilon, max_steps, rng, env, model, w, episodes)
         run.counts = np.zeros((S, cols), dtype=np.int64)
         run.returns = np.zeros(episodes)
         run.lengths = np.zeros(episodes, dtype=np.int64)
         run.first_actions = np.full(episodes, -1, dtype=np.int64)
-        if algo.rule == K.DOUBLE_Q:
+        if algo.rule == tdk.DOUBLE_Q:
             run.q2 = w.copy()
         if algo.family == "dyna":
             run.model_next = np.full((S, A), -1, dtype=np.int64)
@@ -257,38 +299,129 @@ class _Run:
 
         ap, ep = self.alpha.params, self.epsilon.params
         if a.family == "td0":
-            return int(kernel(K.td0_kernel)(
-                self.env, self.pi, self.w[:, 0], k0, k1, self.gamma, ap, self.max_steps, self.rng,
-                self.counts[:, 0], self.returns, self.lengths,
-            ))
+            return int(
+                kernel(tdk.td0_kernel)(
+                    self.env,
+                    self.model,
+                    self.pi,
+                    self.w[:, 0],
+                    k0,
+                    k1,
+                    self.gamma,
+                    ap,
+                    self.max_steps,
+                    self.rng,
+                    self.counts[:, 0],
+                    self.returns,
+                    self.lengths,
+                )
+            )
         if a.family == "one_step":
-            q2 = self.q2 if a.rule == K.DOUBLE_Q else self.w
-            return int(kernel(K.one_step_control_kernel)(
-                self.env, P.mask, self.w, q2, a.rule, k0, k1, self.gamma, ap, ep, self.max_steps,
-                self.rng, self.counts, self.returns, self.lengths, self.first_actions,
-            ))
+            q2 = self.q2 if a.rule == tdk.DOUBLE_Q else self.w
+            return int(
+                kernel(tdk.one_step_control_kernel)(
+                    self.env,
+                    self.model,
+                    P.mask,
+                    self.w,
+                    q2,
+                    a.rule,
+                    k0,
+                    k1,
+                    self.gamma,
+                    ap,
+                    ep,
+                    self.max_steps,
+                    self.rng,
+                    self.counts,
+                    self.returns,
+                    self.lengths,
+                    self.first_actions,
+                )
+            )
         if a.family == "n_step":
-            return int(kernel(K.n_step_kernel)(
-                self.env, P.mask, self.pi, self.w, a.control, a.n, k0, k1, self.gamma, ap, ep,
-                self.max_steps, self.rng, self.counts, self.returns, self.lengths,
-            ))
+            return int(
+                kernel(tdk.n_step_kernel)(
+                    self.env,
+                    self.model,
+                    P.mask,
+                    self.pi,
+                    self.w,
+                    a.control,
+                    a.n,
+                    k0,
+                    k1,
+                    self.gamma,
+                    ap,
+                    ep,
+                    self.max_steps,
+                    self.rng,
+                    self.counts,
+                    self.returns,
+                    self.lengths,
+                )
+            )
         if a.family == "lambda":
-            return int(kernel(K.lambda_kernel)(
-                self.env, P.mask, self.pi, self.w, a.control, a.lam, a.trace, k0, k1, self.gamma,
-                ap, ep, self.max_steps, self.rng, self.counts, self.returns, self.lengths,
-            ))
-        return int(kernel(K.dyna_q_kernel)(
-            self.env, P.mask, self.w, a.planning, k0, k1, self.gamma, ap, ep, self.max_steps,
-            self.rng, self.counts, self.returns, self.lengths, self.model_next, self.model_reward,
-            self.seen,
-        ))
+            return int(
+                kernel(tdk.lambda_kernel)(
+                    self.env,
+                    self.model,
+                    P.mask,
+                    self.pi,
+                    self.w,
+                    a.control,
+                    a.lam,
+                    a.trace,
+                    k0,
+                    k1,
+                    self.gamma,
+                    ap,
+                    ep,
+                    self.max_steps,
+                    self.rng,
+                    self.counts,
+                    self.returns,
+                    self.lengths,
+                )
+            )
+        return int(
+            kernel(tdk.dyna_q_kernel)(
+                self.env,
+                self.model,
+                P.mask,
+                self.w,
+                a.planning,
+                k0,
+                k1,
+                self.gamma,
+                ap,
+                ep,
+                self.max_steps,
+                self.rng,
+                self.counts,
+                self.returns,
+                self.lengths,
+                self.model_next,
+                self.model_reward,
+                self.seen,
+            )
+        )
 
     @property
     def q(self) -> NDArray[np.float64]:
-        """Q (S, A): the control table (Q1 + Q2 averaged for Double Q); zeros for prediction."""
+        """Q (S, A): the control table (Q1 + Q2 averaged for Double Q).
+
+        Prediction learns V only; its Q is the one-step lookahead q(s, a) = sum p(s', r |
+        s, a) [r + gamma V(s')] where the model is known, else zeros.
+        """
         if not self.algo.control:
-            return np.zeros((self.P.n_states, self.P.n_actions))
-        q = (self.w + self.q2) / 2.0 if self.algo.rule == K.DOUBLE_Q else self.w.copy()
+            if self.P.mdp is None or not np.all(np.isfinite(self.v)):
+                return np.zeros((self.P.n_states, self.P.n_actions))
+            from policylab.planning import action_values
+
+            q = np.asarray(action_values(self.P.mdp.with_gamma(self.gamma), self.v))
+            return np.where(self.P.mask, q, 0.0)
+        q = (self.w + self.q2) / 2.0 if self.algo.rule == tdk.DOUBLE_Q else self.w.copy()
         return np.where(self.P.mask, q, 0.0)
 
     @property
@@ -304,18 +437,27 @@ class _Run:
 
 
 def _prepare(
-    algo: _Algo, problem: Any, policy: Any, *, model: FiniteMDP | None, episodes: int,
-    gamma: float | None, alpha: Schedule | float | str | None, epsilon: Schedule | float | str | None,
+    algo: _Algo,
+    problem: Any,
+    policy: Any,
+    *,
+    model: FiniteMDP | None,
+    episodes: int,
+    gamma: float | None,
+    alpha: Schedule | float | str | None,
+    epsilon: Schedule | float | str | None,
     max_steps: int,
 ) -> tuple[_Problem, NDArray[np.float64], Policy | None, float, Schedule, Schedule, int, int]:
-    """Checked arguments shared by :func:`_learn` and :func:`run_seeds`."""
+    """Checked arguments shared by :func:`_learn` and :func:`seed_study`."""
     episodes = check_episodes(episodes)
     max_steps = check_episodes(max_steps, "max_steps")
     P = _resolve(problem, model)
     g = check_gamma(gamma, P.mdp.gamma if P.mdp is not None else 1.0)
     default_alpha = _DEFAULT_ALPHA_CONTROL if algo.control else _DEFAULT_ALPHA_PREDICTION
     a = as_schedule(alpha, Schedule.constant(default_alpha), "alpha").check_range(0.0, 1.0, "alpha")
-    e = as_schedule(epsilon, Schedule.constant(_DEFAULT_EPSILON), "epsilon").check_range(0.0, 1.0, "epsilon")
+    e = as_schedule(epsilon, Schedule.constant(_DEFAULT_EPSILON), "epsilon").check_range(
+        0.0, 1.0, "epsilon"
+    )
     if algo.control:
         if policy is not None:
             raise InvalidArgumentError(f"{algo.name} is a control method; it takes no policy")
@@ -326,15 +468,33 @@ def _prepare(
 
 
 def _learn(
-    algo: _Algo, problem: Any, policy: Any = None, *, episodes: int, seed: Seed,
-    gamma: float | None, alpha: Schedule | float | str | None, epsilon: Schedule | float | str | None = None,
-    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000, model: FiniteMDP | None = None,
-    progress: bool = False, params: dict[str, Any] | None = None,
+    algo: _Algo,
+    problem: Any,
+    policy: Any = None,
+    *,
+    episodes: int,
+    seed: Seed,
+    gamma: float | None,
+    alpha: Schedule | float | str | None,
+    epsilon: Schedule | float | str | None = None,
+    init: float = 0.0,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
+    params: dict[str, Any] | None = None,
 ) -> LearnResult:
     """The body every TD learner shares: checks, ground truth, chunks, result."""
     P, pi, truth_policy, g, a, e, episodes, max_steps = _prepare(
-        algo, problem, policy, model=model, episodes=episodes, gamma=gamma, alpha=alpha,
-        epsilon=epsilon, max_steps=max_steps,
+        algo,
+        problem,
+        policy,
+        model=model,
+        episodes=episodes,
+        gamma=gamma,
+        alpha=alpha,
+        epsilon=epsilon,
+        max_steps=max_steps,
     )
     truth: GroundTruth | None = None
     if P.mdp is not None:
@@ -347,8 +507,17 @@ def _learn(
     rng = rng_states(gen, 1)[0]
     env_seed = int(gen.integers(2**31 - 1))
     run = _Run.start(
-        algo, P, pi, gamma=g, alpha=a, epsilon=e, max_steps=max_steps, rng=rng, env_seed=env_seed,
-        episodes=episodes, init=init,
+        algo,
+        P,
+        pi,
+        gamma=g,
+        alpha=a,
+        epsilon=e,
+        max_steps=max_steps,
+        rng=rng,
+        env_seed=env_seed,
+        episodes=episodes,
+        init=init,
     )
     steps = 0
     t0 = time.perf_counter()
@@ -358,6 +527,7 @@ def _learn(
             rec.record(run.q if algo.control else None, run.v)
             advance(k1 - k0)
     seconds = time.perf_counter() - t0
+    _warn_if_diverged(algo, run, a)
     counts = run.counts if algo.control else np.repeat(run.counts, P.n_actions, axis=1) * P.mask
     pol = greedy_probs(run.q, P.mask) if algo.control else pi.copy()
     return LearnResult(
@@ -387,6 +557,36 @@ def _learn(
         },
         mdp=P.mdp,
         **rec.arrays(),
+    )
+
+
+def _warn_if_diverged(algo: _Algo, run: _Run, alpha: Schedule) -> None:
+    """Warn when the table diverged.
+
+    Diverged: non-finite values, or (with a model) values beyond ten times the largest
+    possible return, max|r| / (1 - gamma) (max|r| * max_steps for gamma = 1).
+    """
+    tables = np.concatenate([run.w.ravel(), run.q2.ravel()])
+    diverged = not np.all(np.isfinite(tables))
+    if not diverged and run.P.mdp is not None and run.P.mdp.n_outcomes:
+        r_max = float(np.abs(run.P.mdp.rewards).max())
+        horizon = 1.0 / (1.0 - run.gamma) if run.gamma < 1.0 else float(run.max_steps)
+        diverged = bool(np.abs(tables).max() > 10.0 * max(r_max, 1e-12) * horizon)
+    if not diverged:
+        return
+    import warnings
+
+    hint = (
+        " (accumulating traces diverge when alpha is large for the trace length, S&B "
+        "Figure 12.6; try replacing traces)"
+        if algo.family == "lambda"
+        else ""
+    )
+    warnings.warn(
+        f"{algo.name}: the estimates diverged (beyond any possible return) with alpha "
+        f"{alpha}; use a smaller step size{hint}",
+        RuntimeWarning,
+        stacklevel=3,
     )
 
 
@@ -424,14 +624,25 @@ class SeedRuns:
         return float(self.returns[:, first:last].mean())
 
 
-def run_seeds(
-    algorithm: str, problem: FiniteMDP | Any, seeds: int = 100, *, seed: Seed = 0,
-    episodes: int = 500, policy: Any = None, progress: bool = False, **options: Any,
+def seed_study(
+    algorithm: str,
+    problem: FiniteMDP | Any,
+    seeds: int = 100,
+    *,
+    seed: Seed = 0,
+    episodes: int = 500,
+    policy: Any = None,
+    progress: bool = False,
+    **options: Any,
 ) -> SeedRuns:
     """Run a TD learner ``seeds`` times independently (the many-seed studies of the book).
 
-    On a FiniteMDP every run is one call of the compiled kernel; run r uses the r-th
-    RNG state of ``rng_states(seed, seeds)``, so the study is reproducible.
+    The arrays the book's figures average: every episode's return, length and first
+    action for every run, without the error curve against the exact answer. On a
+    FiniteMDP every run is one call of the compiled kernel over all its episodes; run r
+    uses the r-th RNG state of ``rng_states(seed, seeds)``, so the study is
+    reproducible. (:func:`~policylab.tabular.run_seeds` instead gives one full
+    :class:`LearnResult` per seed, error curves included, on threads.)
 
     Args:
         algorithm: A TD algorithm's registry name (``"sarsa"``, ``"q-learning"``, ...).
@@ -449,19 +660,32 @@ def run_seeds(
     """
     name = algorithm.strip().lower().replace("_", "-")
     if name not in _ALGOS:
-        raise InvalidArgumentError(f"unknown TD algorithm {algorithm!r}; known: {', '.join(sorted(_ALGOS))}")
+        raise InvalidArgumentError(
+            f"unknown TD algorithm {algorithm!r}; known: {', '.join(sorted(_ALGOS))}"
+        )
     n_runs = check_episodes(seeds, "seeds")
     opts = dict(options)
     algo = _ALGOS[name](opts)
     init = float(opts.pop("init", 0.0))
-    gamma, alpha, epsilon = opts.pop("gamma", None), opts.pop("alpha", None), opts.pop("epsilon", None)
+    gamma, alpha, epsilon = (
+        opts.pop("gamma", None),
+        opts.pop("alpha", None),
+        opts.pop("epsilon", None),
+    )
     max_steps = int(opts.pop("max_steps", 10_000))
     model = opts.pop("model", None)
     if opts:
         raise InvalidArgumentError(f"{name}: unknown options {sorted(opts)}")
     P, pi, _, g, a, e, episodes, max_steps = _prepare(
-        algo, problem, policy, model=model, episodes=episodes, gamma=gamma, alpha=alpha,
-        epsilon=epsilon, max_steps=max_steps,
+        algo,
+        problem,
+        policy,
+        model=model,
+        episodes=episodes,
+        gamma=gamma,
+        alpha=alpha,
+        epsilon=epsilon,
+        max_steps=max_steps,
     )
     gen = np.random.default_rng(seed)
     states = rng_states(gen, n_runs)
@@ -477,17 +701,39 @@ def run_seeds(
     with progress_bar(progress, n_runs, f"{name} x {n_runs} seeds") as advance:
         for r in range(n_runs):
             run = _Run.start(
-                algo, P, pi, gamma=g, alpha=a, epsilon=e, max_steps=max_steps, rng=states[r],
-                env_seed=int(env_seeds[r]), episodes=episodes, init=init,
+                algo,
+                P,
+                pi,
+                gamma=g,
+                alpha=a,
+                epsilon=e,
+                max_steps=max_steps,
+                rng=states[r],
+                env_seed=int(env_seeds[r]),
+                episodes=episodes,
+                init=init,
             )
             steps += run(0, episodes)
+            _warn_if_diverged(algo, run, a)
             out_r[r], out_l[r], out_q[r], out_v[r], out_f[r] = (
-                run.returns, run.lengths, run.q, run.v, run.first_actions,
+                run.returns,
+                run.lengths,
+                run.q,
+                run.v,
+                run.first_actions,
             )
             advance(1)
     return SeedRuns(
-        name, P.name, n_runs, out_r, out_l, out_q, out_v,
-        out_f if algo.family == "one_step" else None, int(steps), time.perf_counter() - t0,
+        name,
+        P.name,
+        n_runs,
+        out_r,
+        out_l,
+        out_q,
+        out_v,
+        out_f if algo.family == "one_step" else None,
+        int(steps),
+        time.perf_counter() - t0,
     )
 
 
@@ -509,7 +755,7 @@ def _check_lambda(lam: Any) -> float:
 
 
 def _check_trace(trace: Any) -> int:
-    kinds = {"accumulating": K.TRACE_ACCUMULATING, "replacing": K.TRACE_REPLACING}
+    kinds = {"accumulating": tdk.TRACE_ACCUMULATING, "replacing": tdk.TRACE_REPLACING}
     if trace not in kinds:
         raise InvalidArgumentError(f"trace must be 'accumulating' or 'replacing'; got {trace!r}")
     return kinds[trace]
@@ -522,10 +768,18 @@ def _check_planning(k: Any) -> int:
 
 
 def td0(
-    problem: FiniteMDP | Any, policy: Policy | Any = None, *, episodes: int = 100,
-    alpha: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
-    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
-    model: FiniteMDP | None = None, progress: bool = False,
+    problem: FiniteMDP | Any,
+    policy: Policy | Any = None,
+    *,
+    episodes: int = 100,
+    alpha: Schedule | float | str | None = 0.1,
+    gamma: float | None = None,
+    seed: Seed = None,
+    init: float = 0.0,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
 ) -> LearnResult:
     """Tabular TD(0) prediction of v_pi (S&B section 6.1).
 
@@ -547,21 +801,40 @@ def td0(
         progress: Show a progress bar.
 
     Returns:
-        A :class:`LearnResult` with ``v`` (``q`` is zero: TD(0) learns V only) and the
-        error of V against the exact v_pi where the model is known.
+        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi
+        where the model is known. TD(0) learns V only: ``q`` is its one-step lookahead
+        through the model (zeros without one) and ``policy`` is the policy evaluated.
     """
     return _learn(
-        _Algo("td0", "td0", False), problem, policy, episodes=episodes, seed=seed, gamma=gamma,
-        alpha=alpha, init=init, checkpoints=checkpoints, max_steps=max_steps, model=model,
+        _Algo("td0", "td0", False),
+        problem,
+        policy,
+        episodes=episodes,
+        seed=seed,
+        gamma=gamma,
+        alpha=alpha,
+        init=init,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        model=model,
         progress=progress,
     )
 
 
 def n_step_td(
-    problem: FiniteMDP | Any, policy: Policy | Any = None, *, n: int = 4, episodes: int = 100,
-    alpha: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
-    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
-    model: FiniteMDP | None = None, progress: bool = False,
+    problem: FiniteMDP | Any,
+    policy: Policy | Any = None,
+    *,
+    n: int = 4,
+    episodes: int = 100,
+    alpha: Schedule | float | str | None = 0.1,
+    gamma: float | None = None,
+    seed: Seed = None,
+    init: float = 0.0,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
 ) -> LearnResult:
     """n-step TD prediction of v_pi (S&B section 7.1).
 
@@ -571,17 +844,37 @@ def n_step_td(
     Arguments as :func:`td0`, plus ``n``.
     """
     return _learn(
-        _Algo("n-step-td", "n_step", False, n=_check_n(n)), problem, policy, episodes=episodes,
-        seed=seed, gamma=gamma, alpha=alpha, init=init, checkpoints=checkpoints,
-        max_steps=max_steps, model=model, progress=progress, params={"n": int(n)},
+        _Algo("n-step-td", "n_step", False, n=_check_n(n)),
+        problem,
+        policy,
+        episodes=episodes,
+        seed=seed,
+        gamma=gamma,
+        alpha=alpha,
+        init=init,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        model=model,
+        progress=progress,
+        params={"n": int(n)},
     )
 
 
 def td_lambda(
-    problem: FiniteMDP | Any, policy: Policy | Any = None, *, lam: float = 0.8,
-    trace: Trace = "accumulating", episodes: int = 100, alpha: Schedule | float | str | None = 0.1,
-    gamma: float | None = None, seed: Seed = None, init: float = 0.0, checkpoints: int = 50,
-    max_steps: int = 10_000, model: FiniteMDP | None = None, progress: bool = False,
+    problem: FiniteMDP | Any,
+    policy: Policy | Any = None,
+    *,
+    lam: float = 0.8,
+    trace: Trace = "accumulating",
+    episodes: int = 100,
+    alpha: Schedule | float | str | None = 0.1,
+    gamma: float | None = None,
+    seed: Seed = None,
+    init: float = 0.0,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
 ) -> LearnResult:
     """Tabular TD(lambda) prediction with eligibility traces (S&B section 12.2).
 
@@ -592,21 +885,52 @@ def td_lambda(
     """
     return _learn(
         _Algo("td-lambda", "lambda", False, lam=_check_lambda(lam), trace=_check_trace(trace)),
-        problem, policy, episodes=episodes, seed=seed, gamma=gamma, alpha=alpha, init=init,
-        checkpoints=checkpoints, max_steps=max_steps, model=model, progress=progress,
+        problem,
+        policy,
+        episodes=episodes,
+        seed=seed,
+        gamma=gamma,
+        alpha=alpha,
+        init=init,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        model=model,
+        progress=progress,
         params={"lambda": float(lam), "trace": trace},
     )
 
 
 def _control(
-    algo: _Algo, problem: Any, *, episodes: int, alpha: Any, epsilon: Any, gamma: float | None,
-    seed: Seed, init: float, checkpoints: int, max_steps: int, model: FiniteMDP | None,
-    progress: bool, params: dict[str, Any] | None = None,
+    algo: _Algo,
+    problem: Any,
+    *,
+    episodes: int,
+    alpha: Any,
+    epsilon: Any,
+    gamma: float | None,
+    seed: Seed,
+    init: float,
+    checkpoints: int,
+    max_steps: int,
+    model: FiniteMDP | None,
+    progress: bool,
+    params: dict[str, Any] | None = None,
 ) -> LearnResult:
     return _learn(
-        algo, problem, None, episodes=episodes, seed=seed, gamma=gamma, alpha=alpha,
-        epsilon=epsilon, init=init, checkpoints=checkpoints, max_steps=max_steps, model=model,
-        progress=progress, params=params,
+        algo,
+        problem,
+        None,
+        episodes=episodes,
+        seed=seed,
+        gamma=gamma,
+        alpha=alpha,
+        epsilon=epsilon,
+        init=init,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        model=model,
+        progress=progress,
+        params=params,
     )
 
 
@@ -633,10 +957,18 @@ _CONTROL_ARGS = """
 
 
 def sarsa(
-    problem: FiniteMDP | Any, *, episodes: int = 500, alpha: Schedule | float | str | None = 0.1,
-    epsilon: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
-    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
-    model: FiniteMDP | None = None, progress: bool = False,
+    problem: FiniteMDP | Any,
+    *,
+    episodes: int = 500,
+    alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1,
+    gamma: float | None = None,
+    seed: Seed = None,
+    init: float = 0.0,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
 ) -> LearnResult:
     """Sarsa, on-policy TD control (S&B section 6.4).
 
@@ -644,34 +976,68 @@ def sarsa(
     epsilon-greedy action actually taken next.
     """
     return _control(
-        _Algo("sarsa", "one_step", True, rule=K.SARSA), problem, episodes=episodes, alpha=alpha,
-        epsilon=epsilon, gamma=gamma, seed=seed, init=init, checkpoints=checkpoints,
-        max_steps=max_steps, model=model, progress=progress,
+        _Algo("sarsa", "one_step", True, rule=tdk.SARSA),
+        problem,
+        episodes=episodes,
+        alpha=alpha,
+        epsilon=epsilon,
+        gamma=gamma,
+        seed=seed,
+        init=init,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        model=model,
+        progress=progress,
     )
 
 
 def q_learning(
-    problem: FiniteMDP | Any, *, episodes: int = 500, alpha: Schedule | float | str | None = 0.1,
-    epsilon: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
-    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
-    model: FiniteMDP | None = None, progress: bool = False,
+    problem: FiniteMDP | Any,
+    *,
+    episodes: int = 500,
+    alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1,
+    gamma: float | None = None,
+    seed: Seed = None,
+    init: float = 0.0,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
 ) -> LearnResult:
     """Q-learning, off-policy TD control (S&B section 6.5).
 
     Q(S, A) <- Q(S, A) + alpha [R + gamma max_a Q(S', a) - Q(S, A)].
     """
     return _control(
-        _Algo("q-learning", "one_step", True, rule=K.Q_LEARNING), problem, episodes=episodes,
-        alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed, init=init, checkpoints=checkpoints,
-        max_steps=max_steps, model=model, progress=progress,
+        _Algo("q-learning", "one_step", True, rule=tdk.Q_LEARNING),
+        problem,
+        episodes=episodes,
+        alpha=alpha,
+        epsilon=epsilon,
+        gamma=gamma,
+        seed=seed,
+        init=init,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        model=model,
+        progress=progress,
     )
 
 
 def expected_sarsa(
-    problem: FiniteMDP | Any, *, episodes: int = 500, alpha: Schedule | float | str | None = 0.1,
-    epsilon: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
-    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
-    model: FiniteMDP | None = None, progress: bool = False,
+    problem: FiniteMDP | Any,
+    *,
+    episodes: int = 500,
+    alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1,
+    gamma: float | None = None,
+    seed: Seed = None,
+    init: float = 0.0,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
 ) -> LearnResult:
     """Expected Sarsa (S&B section 6.6).
 
@@ -679,17 +1045,34 @@ def expected_sarsa(
     epsilon-greedy policy of Q.
     """
     return _control(
-        _Algo("expected-sarsa", "one_step", True, rule=K.EXPECTED_SARSA), problem,
-        episodes=episodes, alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed, init=init,
-        checkpoints=checkpoints, max_steps=max_steps, model=model, progress=progress,
+        _Algo("expected-sarsa", "one_step", True, rule=tdk.EXPECTED_SARSA),
+        problem,
+        episodes=episodes,
+        alpha=alpha,
+        epsilon=epsilon,
+        gamma=gamma,
+        seed=seed,
+        init=init,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        model=model,
+        progress=progress,
     )
 
 
 def double_q_learning(
-    problem: FiniteMDP | Any, *, episodes: int = 500, alpha: Schedule | float | str | None = 0.1,
-    epsilon: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
-    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
-    model: FiniteMDP | None = None, progress: bool = False,
+    problem: FiniteMDP | Any,
+    *,
+    episodes: int = 500,
+    alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1,
+    gamma: float | None = None,
+    seed: Seed = None,
+    init: float = 0.0,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
 ) -> LearnResult:
     """Double Q-learning (S&B section 6.7), which removes the maximisation bias.
 
@@ -698,17 +1081,35 @@ def double_q_learning(
     Q1 + Q2. ``result.q`` is (Q1 + Q2) / 2.
     """
     return _control(
-        _Algo("double-q-learning", "one_step", True, rule=K.DOUBLE_Q), problem,
-        episodes=episodes, alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed, init=init,
-        checkpoints=checkpoints, max_steps=max_steps, model=model, progress=progress,
+        _Algo("double-q-learning", "one_step", True, rule=tdk.DOUBLE_Q),
+        problem,
+        episodes=episodes,
+        alpha=alpha,
+        epsilon=epsilon,
+        gamma=gamma,
+        seed=seed,
+        init=init,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        model=model,
+        progress=progress,
     )
 
 
 def n_step_sarsa(
-    problem: FiniteMDP | Any, *, n: int = 4, episodes: int = 500,
-    alpha: Schedule | float | str | None = 0.1, epsilon: Schedule | float | str | None = 0.1,
-    gamma: float | None = None, seed: Seed = None, init: float = 0.0, checkpoints: int = 50,
-    max_steps: int = 10_000, model: FiniteMDP | None = None, progress: bool = False,
+    problem: FiniteMDP | Any,
+    *,
+    n: int = 4,
+    episodes: int = 500,
+    alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1,
+    gamma: float | None = None,
+    seed: Seed = None,
+    init: float = 0.0,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
 ) -> LearnResult:
     """n-step Sarsa (S&B section 7.2).
 
@@ -716,18 +1117,37 @@ def n_step_sarsa(
     ... + gamma^{n-1} R_{tau+n} + gamma^n Q(S_{tau+n}, A_{tau+n}). n = 1 is Sarsa.
     """
     return _control(
-        _Algo("n-step-sarsa", "n_step", True, n=_check_n(n)), problem, episodes=episodes,
-        alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed, init=init, checkpoints=checkpoints,
-        max_steps=max_steps, model=model, progress=progress, params={"n": int(n)},
+        _Algo("n-step-sarsa", "n_step", True, n=_check_n(n)),
+        problem,
+        episodes=episodes,
+        alpha=alpha,
+        epsilon=epsilon,
+        gamma=gamma,
+        seed=seed,
+        init=init,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        model=model,
+        progress=progress,
+        params={"n": int(n)},
     )
 
 
 def sarsa_lambda(
-    problem: FiniteMDP | Any, *, lam: float = 0.8, trace: Trace = "accumulating",
-    episodes: int = 500, alpha: Schedule | float | str | None = 0.1,
-    epsilon: Schedule | float | str | None = 0.1, gamma: float | None = None, seed: Seed = None,
-    init: float = 0.0, checkpoints: int = 50, max_steps: int = 10_000,
-    model: FiniteMDP | None = None, progress: bool = False,
+    problem: FiniteMDP | Any,
+    *,
+    lam: float = 0.8,
+    trace: Trace = "accumulating",
+    episodes: int = 500,
+    alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1,
+    gamma: float | None = None,
+    seed: Seed = None,
+    init: float = 0.0,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
 ) -> LearnResult:
     """Tabular Sarsa(lambda) with eligibility traces (S&B section 12.7).
 
@@ -736,17 +1156,35 @@ def sarsa_lambda(
     """
     return _control(
         _Algo("sarsa-lambda", "lambda", True, lam=_check_lambda(lam), trace=_check_trace(trace)),
-        problem, episodes=episodes, alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed,
-        init=init, checkpoints=checkpoints, max_steps=max_steps, model=model, progress=progress,
+        problem,
+        episodes=episodes,
+        alpha=alpha,
+        epsilon=epsilon,
+        gamma=gamma,
+        seed=seed,
+        init=init,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        model=model,
+        progress=progress,
         params={"lambda": float(lam), "trace": trace},
     )
 
 
 def dyna_q(
-    problem: FiniteMDP | Any, *, planning_steps: int = 5, episodes: int = 500,
-    alpha: Schedule | float | str | None = 0.1, epsilon: Schedule | float | str | None = 0.1,
-    gamma: float | None = None, seed: Seed = None, init: float = 0.0, checkpoints: int = 50,
-    max_steps: int = 10_000, model: FiniteMDP | None = None, progress: bool = False,
+    problem: FiniteMDP | Any,
+    *,
+    planning_steps: int = 5,
+    episodes: int = 500,
+    alpha: Schedule | float | str | None = 0.1,
+    epsilon: Schedule | float | str | None = 0.1,
+    gamma: float | None = None,
+    seed: Seed = None,
+    init: float = 0.0,
+    checkpoints: int = 50,
+    max_steps: int = 10_000,
+    model: FiniteMDP | None = None,
+    progress: bool = False,
 ) -> LearnResult:
     """Tabular Dyna-Q (S&B section 8.2): Q-learning plus planning from a learned model.
 
@@ -756,14 +1194,31 @@ def dyna_q(
     Q-learning.
     """
     return _control(
-        _Algo("dyna-q", "dyna", True, planning=_check_planning(planning_steps)), problem,
-        episodes=episodes, alpha=alpha, epsilon=epsilon, gamma=gamma, seed=seed, init=init,
-        checkpoints=checkpoints, max_steps=max_steps, model=model, progress=progress,
+        _Algo("dyna-q", "dyna", True, planning=_check_planning(planning_steps)),
+        problem,
+        episodes=episodes,
+        alpha=alpha,
+        epsilon=epsilon,
+        gamma=gamma,
+        seed=seed,
+        init=init,
+        checkpoints=checkpoints,
+        max_steps=max_steps,
+        model=model,
+        progress=progress,
         params={"planning_steps": int(planning_steps)},
     )
 
 
-for _fn in (sarsa, q_learning, expected_sarsa, double_q_learning, n_step_sarsa, sarsa_lambda, dyna_q):
+for _fn in (
+    sarsa,
+    q_learning,
+    expected_sarsa,
+    double_q_learning,
+    n_step_sarsa,
+    sarsa_lambda,
+    dyna_q,
+):
     _fn.__doc__ = (_fn.__doc__ or "").rstrip() + "\n" + _CONTROL_ARGS
 
 
@@ -772,39 +1227,132 @@ _ALGOS: dict[str, Any] = {
     "td0": lambda o: _Algo("td0", "td0", False),
     "n-step-td": lambda o: _Algo("n-step-td", "n_step", False, n=_check_n(o.pop("n", 4))),
     "td-lambda": lambda o: _Algo(
-        "td-lambda", "lambda", False, lam=_check_lambda(o.pop("lam", 0.8)),
+        "td-lambda",
+        "lambda",
+        False,
+        lam=_check_lambda(o.pop("lam", 0.8)),
         trace=_check_trace(o.pop("trace", "accumulating")),
     ),
-    "sarsa": lambda o: _Algo("sarsa", "one_step", True, rule=K.SARSA),
-    "q-learning": lambda o: _Algo("q-learning", "one_step", True, rule=K.Q_LEARNING),
-    "expected-sarsa": lambda o: _Algo("expected-sarsa", "one_step", True, rule=K.EXPECTED_SARSA),
-    "double-q-learning": lambda o: _Algo("double-q-learning", "one_step", True, rule=K.DOUBLE_Q),
+    "sarsa": lambda o: _Algo("sarsa", "one_step", True, rule=tdk.SARSA),
+    "q-learning": lambda o: _Algo("q-learning", "one_step", True, rule=tdk.Q_LEARNING),
+    "expected-sarsa": lambda o: _Algo("expected-sarsa", "one_step", True, rule=tdk.EXPECTED_SARSA),
+    "double-q-learning": lambda o: _Algo("double-q-learning", "one_step", True, rule=tdk.DOUBLE_Q),
     "n-step-sarsa": lambda o: _Algo("n-step-sarsa", "n_step", True, n=_check_n(o.pop("n", 4))),
     "sarsa-lambda": lambda o: _Algo(
-        "sarsa-lambda", "lambda", True, lam=_check_lambda(o.pop("lam", 0.8)),
+        "sarsa-lambda",
+        "lambda",
+        True,
+        lam=_check_lambda(o.pop("lam", 0.8)),
         trace=_check_trace(o.pop("trace", "accumulating")),
     ),
-    "dyna-q": lambda o: _Algo("dyna-q", "dyna", True, planning=_check_planning(o.pop("planning_steps", 5))),
+    "dyna-q": lambda o: _Algo(
+        "dyna-q", "dyna", True, planning=_check_planning(o.pop("planning_steps", 5))
+    ),
 }
 
-_ALPHA = Option("--alpha", "alpha", "schedule", "Step size alpha: a number, or a schedule of each entry's update count (1/n, inverse:1,0.6,0.01, exp:0.5,0.999,0.01, linear:0.5,0.01,10000).")
-_EPSILON = Option("--epsilon", "epsilon", "schedule", "Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of the episode number (1/n, exp:1,0.999,0.01, linear:1,0.01,5000).")
-_INIT = Option("--init", "init", "float", "Initial value of every non-terminal entry of the table (high values explore optimistically).")
+_ALPHA = Option(
+    "--alpha",
+    "alpha",
+    "schedule",
+    "Step size alpha: a number, or a schedule of each entry's update count "
+    "(1/n, inverse:1,0.6,0.01, exp:0.5,0.999,0.01, linear:0.5,0.01,10000).",
+)
+_EPSILON = Option(
+    "--epsilon",
+    "epsilon",
+    "schedule",
+    "Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of the "
+    "episode number (1/n, exp:1,0.999,0.01, linear:1,0.01,5000).",
+)
+_INIT = Option(
+    "--init",
+    "init",
+    "float",
+    "Initial value of every non-terminal entry of the table (high values explore optimistically).",
+)
 _N = Option("--n", "n", "int", "Number of steps n of the n-step return (n = 1 is one-step TD).")
 _LAM = Option("--lambda", "lam", "float", "Trace-decay rate lambda in [0, 1] (0 is one-step TD).")
 _TRACE = Option("--trace", "trace", "str", "Eligibility trace: accumulating or replacing.")
-_PLAN = Option("--planning-steps", "planning_steps", "int", "Planning updates from the learned model after each real step (0 is Q-learning).")
+_PLAN = Option(
+    "--planning-steps",
+    "planning_steps",
+    "int",
+    "Planning updates from the learned model after each real step (0 is Q-learning).",
+)
 
 for _name, _learner, _desc, _opts, _kind, _eps in (
     ("td0", td0, "TD(0) prediction of v_pi (S&B 6.1).", (_ALPHA, _INIT), "prediction", 100),
-    ("n-step-td", n_step_td, "n-step TD prediction of v_pi (S&B 7.1).", (_N, _ALPHA, _INIT), "prediction", 100),
-    ("td-lambda", td_lambda, "TD(lambda) prediction with eligibility traces (S&B 12.2).", (_LAM, _TRACE, _ALPHA, _INIT), "prediction", 100),
-    ("sarsa", sarsa, "Sarsa: on-policy TD control (S&B 6.4).", (_ALPHA, _EPSILON, _INIT), "control", 500),
-    ("q-learning", q_learning, "Q-learning: off-policy TD control (S&B 6.5).", (_ALPHA, _EPSILON, _INIT), "control", 500),
-    ("expected-sarsa", expected_sarsa, "Expected Sarsa (S&B 6.6).", (_ALPHA, _EPSILON, _INIT), "control", 500),
-    ("double-q-learning", double_q_learning, "Double Q-learning, no maximisation bias (S&B 6.7).", (_ALPHA, _EPSILON, _INIT), "control", 500),
-    ("n-step-sarsa", n_step_sarsa, "n-step Sarsa (S&B 7.2).", (_N, _ALPHA, _EPSILON, _INIT), "control", 500),
-    ("sarsa-lambda", sarsa_lambda, "Sarsa(lambda) with eligibility traces (S&B 12.7).", (_LAM, _TRACE, _ALPHA, _EPSILON, _INIT), "control", 500),
-    ("dyna-q", dyna_q, "Dyna-Q: Q-learning plus planning from a learned model (S&B 8.2).", (_PLAN, _ALPHA, _EPSILON, _INIT), "control", 500),
+    (
+        "n-step-td",
+        n_step_td,
+        "n-step TD prediction of v_pi (S&B 7.1).",
+        (_N, _ALPHA, _INIT),
+        "prediction",
+        100,
+    ),
+    (
+        "td-lambda",
+        td_lambda,
+        "TD(lambda) prediction with eligibility traces (S&B 12.2).",
+        (_LAM, _TRACE, _ALPHA, _INIT),
+        "prediction",
+        100,
+    ),
+    (
+        "sarsa",
+        sarsa,
+        "Sarsa: on-policy TD control (S&B 6.4).",
+        (_ALPHA, _EPSILON, _INIT),
+        "control",
+        500,
+    ),
+    (
+        "q-learning",
+        q_learning,
+        "Q-learning: off-policy TD control (S&B 6.5).",
+        (_ALPHA, _EPSILON, _INIT),
+        "control",
+        500,
+    ),
+    (
+        "expected-sarsa",
+        expected_sarsa,
+        "Expected Sarsa (S&B 6.6).",
+        (_ALPHA, _EPSILON, _INIT),
+        "control",
+        500,
+    ),
+    (
+        "double-q-learning",
+        double_q_learning,
+        "Double Q-learning, no maximisation bias (S&B 6.7).",
+        (_ALPHA, _EPSILON, _INIT),
+        "control",
+        500,
+    ),
+    (
+        "n-step-sarsa",
+        n_step_sarsa,
+        "n-step Sarsa (S&B 7.2).",
+        (_N, _ALPHA, _EPSILON, _INIT),
+        "control",
+        500,
+    ),
+    (
+        "sarsa-lambda",
+        sarsa_lambda,
+        "Sarsa(lambda) with eligibility traces (S&B 12.7).",
+        (_LAM, _TRACE, _ALPHA, _EPSILON, _INIT),
+        "control",
+        500,
+    ),
+    (
+        "dyna-q",
+        dyna_q,
+        "Dyna-Q: Q-learning plus planning from a learned model (S&B 8.2).",
+        (_PLAN, _ALPHA, _EPSILON, _INIT),
+        "control",
+        500,
+    ),
 ):
     register_algorithm(_name, _learner, _desc, options=_opts, kind=_kind, default_episodes=_eps)  # type: ignore[arg-type]

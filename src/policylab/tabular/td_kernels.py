@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload, register_jitable
 
+from policylab.exceptions import UnknownLabelError
 from policylab.tabular.kernels import (
     epsilon_greedy_action,
     epsilon_greedy_prob,
@@ -80,13 +81,22 @@ TRACE_ACCUMULATING, TRACE_REPLACING = 0, 1
 
 
 # ---------------------------------------------------------------------------- environment
-def model_tuple(km: Any) -> tuple[Any, ...]:
-    """The model a compiled kernel steps, from a :class:`~policylab.tabular.kernels.KernelMDP`.
+def model_tuple(km: Any | None) -> tuple[Any, ...]:
+    """The model arrays a kernel samples, from a :class:`~policylab.tabular.kernels.KernelMDP`.
 
-    ``(indptr, next_states, probs, rewards, terminal, initial, n_actions)``.
+    ``(indptr, next_states, probs, rewards, terminal, initial)``; with None (the
+    general path, which steps a Gymnasium env instead) empty arrays of the same types.
     """
-    return (km.indptr, km.next_states, km.probs, km.rewards, km.terminal, km.initial,
-            int(km.mask.shape[1]))
+    if km is None:
+        return (
+            np.zeros(1, dtype=np.int64),
+            np.zeros(0, dtype=np.int32),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros(1, dtype=np.bool_),
+            np.zeros(1),
+        )
+    return (km.indptr, km.next_states, km.probs, km.rewards, km.terminal, km.initial)
 
 
 class GymStepper:
@@ -109,36 +119,65 @@ class GymStepper:
         return int(self.index(obs))
 
     def step(self, a: int) -> tuple[int, float, bool, bool]:
-        """Take A_t; return (row of S_{t+1}, R_{t+1}, terminated, truncated)."""
+        """Take A_t; return (row of S_{t+1}, R_{t+1}, terminated, truncated).
+
+        A terminal observation that is not one of the index's states (Blackjack-v1's
+        final hands) gets row 0: no update ever reads the value of a terminal state.
+        """
         obs, r, terminated, truncated, _ = self.env.step(int(a))
-        return int(self.index(obs)), float(r), bool(terminated), bool(truncated)
+        try:
+            row = int(self.index(obs))
+        except UnknownLabelError:
+            if not terminated:
+                raise
+            row = 0
+        return row, float(r), bool(terminated), bool(truncated)
 
 
-def env_reset(env: Any, rng: Any) -> int:
-    """S_0: ``env.reset()`` (general path; compiled: a draw from the model's start)."""
+def env_reset(env: Any, initial: Any, rng: Any) -> int:
+    """S_0: ``env.reset()`` (general path) or a draw from the model's start distribution.
+
+    On the compiled path ``env`` is None and the model's arrays are given (unpacked once
+    per kernel: a tuple read inside the loop would cost reference counting each step).
+    """
     return int(env.reset())
 
 
-def env_step(env: Any, s: int, a: int, rng: Any) -> tuple[int, float, bool, bool]:
-    """(S_{t+1}, R_{t+1}, terminated, truncated) after A_t = a in S_t = s."""
+def env_step(
+    env: Any,
+    s: int,
+    a: int,
+    rng: Any,
+    indptr: Any,
+    next_states: Any,
+    probs: Any,
+    rewards: Any,
+    terminal: Any,
+    n_actions: int,
+) -> tuple[int, float, bool, bool]:
+    """(S_{t+1}, R_{t+1}, terminated, truncated) after A_t = a in S_t = s.
+
+    General path: ``env.step(a)``. Compiled path (``env`` None): one outcome of row
+    ``s * A + a`` of the outcome table drawn with the shared ``sample_next``.
+    """
     return env.step(a)  # type: ignore[no-any-return]
 
 
-@overload(env_reset)
-def _env_reset_model(env, rng):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
-    if isinstance(env, types.BaseTuple):
-        return lambda env, rng: sample_start(env[5], rng)
+@overload(env_reset, inline="always")
+def _env_reset_model(env, initial, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
+    if isinstance(env, types.NoneType):
+        return lambda env, initial, rng: sample_start(initial, rng)
     return None
 
 
-@overload(env_step)
-def _env_step_model(env, s, a, rng):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
-    if isinstance(env, types.BaseTuple):
+@overload(env_step, inline="always")
+def _env_step_model(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]  # pragma: no cover
+    if isinstance(env, types.NoneType):
 
-        def impl(env, s, a, rng):  # type: ignore[no-untyped-def]
-            k = sample_next(env[0], env[2], s * env[6] + a, rng)
-            nxt = int(env[1][k])
-            return nxt, float(env[3][k]), bool(env[4][nxt]), False
+        def impl(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]
+            k = sample_next(indptr, probs, s * n_actions + a, rng)
+            nxt = int(next_states[k])
+            return nxt, float(rewards[k]), bool(terminal[nxt]), False
 
         return impl
     return None
@@ -174,7 +213,9 @@ def sarsa_target(r: float, gamma: float, q_next: float, terminated: bool) -> flo
 
 
 @register_jitable
-def q_learning_target(r: float, gamma: float, q_next_row: Any, mask_row: Any, terminated: bool) -> float:
+def q_learning_target(
+    r: float, gamma: float, q_next_row: Any, mask_row: Any, terminated: bool
+) -> float:
     """The Q-learning target R_{t+1} + gamma max_a Q(S_{t+1}, a)  (S&B eq. 6.8)."""
     if terminated:
         return r
@@ -219,15 +260,16 @@ def double_q_target(
         if mask_row[a] and q_select_row[a] > best:
             best = q_select_row[a]
             arg = a
-    return r + gamma * q_eval_row[arg]
+    return r + gamma * float(q_eval_row[arg])
 
 
 @register_jitable
 def n_step_return(rewards: Any, start: int, end: int, gamma: float) -> tuple[float, float]:
-    """sum_{i=start+1}^{end} gamma^{i-start-1} R_i (S&B eq. 7.1 without the tail), and gamma^{end-start}.
+    """The n-step return's rewards, sum_{i=start+1}^{end} gamma^{i-start-1} R_i (S&B eq. 7.1).
 
-    ``rewards`` is a ring buffer indexed ``i % len(rewards)``; the second value is the
-    discount of the bootstrap term gamma^n V(S_{t+n}).
+    Also returns gamma^{end-start}, the discount of the bootstrap term.
+
+    ``rewards`` is a ring buffer indexed ``i % len(rewards)``.
     """
     m = rewards.shape[0]
     g = 0.0
@@ -239,23 +281,38 @@ def n_step_return(rewards: Any, start: int, end: int, gamma: float) -> tuple[flo
 
 
 # ---------------------------------------------------------------------------- TD(0)
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def td0_kernel(
-    env: Any, pi: Any, v: Any, k0: int, k1: int, gamma: float, alpha_params: Any,
-    max_steps: int, rng: Any, counts: Any, returns: Any, lengths: Any,
+    env: Any,
+    model: Any,
+    pi: Any,
+    v: Any,
+    k0: int,
+    k1: int,
+    gamma: float,
+    alpha_params: Any,
+    max_steps: int,
+    rng: Any,
+    counts: Any,
+    returns: Any,
+    lengths: Any,
 ) -> int:
     """Tabular TD(0) prediction of v_pi (S&B section 6.1), in place on ``v``.
 
     Each step: A ~ pi(. | S); take A, observe R, S'; V(S) <- V(S) + alpha [R + gamma
     V(S') - V(S)]; S <- S'.
     """
+    indptr, next_states, probs, rewards, terminal, initial = model
+    n_actions = pi.shape[1]
     steps = 0
     for k in range(k0, k1):
-        s = env_reset(env, rng)
+        s = env_reset(env, initial, rng)
         g, disc, t = 0.0, 1.0, 0
         while True:
             a = sample_action(pi[s], rng)
-            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            s2, r, terminated, truncated = env_step(
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
+            )
             t += 1
             g += disc * r
             disc *= gamma
@@ -273,20 +330,31 @@ def td0_kernel(
 
 # ---------------------------------------------------------------------------- one-step control
 @register_jitable
-def _behaviour(q1: Any, q2: Any, s: int, mask: Any, epsilon: float, rule: int, qsum: Any, rng: Any) -> int:
-    """epsilon-greedy in Q (in Q1 + Q2 for Double Q-learning)."""
-    if rule == 3:
-        for a in range(q1.shape[1]):
-            qsum[a] = q1[s, a] + q2[s, a]
-        return epsilon_greedy_action(qsum, mask[s], epsilon, rng)
-    return epsilon_greedy_action(q1[s], mask[s], epsilon, rng)
+def _sum_rows(q1: Any, q2: Any, s: int, out: Any) -> None:
+    """Out <- Q1(s, .) + Q2(s, .): the values Double Q-learning's behaviour acts on."""
+    for a in range(q1.shape[1]):
+        out[a] = q1[s, a] + q2[s, a]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def one_step_control_kernel(
-    env: Any, mask: Any, q1: Any, q2: Any, rule: int, k0: int, k1: int, gamma: float,
-    alpha_params: Any, epsilon_params: Any, max_steps: int, rng: Any, counts: Any,
-    returns: Any, lengths: Any, first_actions: Any,
+    env: Any,
+    model: Any,
+    mask: Any,
+    q1: Any,
+    q2: Any,
+    rule: int,
+    k0: int,
+    k1: int,
+    gamma: float,
+    alpha_params: Any,
+    epsilon_params: Any,
+    max_steps: int,
+    rng: Any,
+    counts: Any,
+    returns: Any,
+    lengths: Any,
+    first_actions: Any,
 ) -> int:
     """Sarsa, Q-learning, Expected Sarsa or Double Q-learning (S&B 6.4-6.7), in place.
 
@@ -298,16 +366,22 @@ def one_step_control_kernel(
     (the other one values the argmax); behaviour is epsilon-greedy in Q1 + Q2.
     ``first_actions[k]`` receives A_0 of episode k (Figure 6.5 counts "left" in A).
     """
+    indptr, next_states, probs, rewards, terminal, initial = model
+    n_actions = mask.shape[1]
     qsum = np.zeros(q1.shape[1])
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
-        s = env_reset(env, rng)
-        a = _behaviour(q1, q2, s, mask, epsilon, rule, qsum, rng)
+        s = env_reset(env, initial, rng)
+        if rule == 3:
+            _sum_rows(q1, q2, s, qsum)
+        a = epsilon_greedy_action(qsum if rule == 3 else q1[s], mask[s], epsilon, rng)
         first_actions[k] = a
         g, disc, t = 0.0, 1.0, 0
         while True:
-            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            s2, r, terminated, truncated = env_step(
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
+            )
             t += 1
             g += disc * r
             disc *= gamma
@@ -317,7 +391,11 @@ def one_step_control_kernel(
             if rule == 0:
                 q_next = 0.0
                 if not terminated:
-                    a2 = _behaviour(q1, q2, s2, mask, epsilon, rule, qsum, rng)
+                    if rule == 3:
+                        _sum_rows(q1, q2, s2, qsum)
+                    a2 = epsilon_greedy_action(
+                        qsum if rule == 3 else q1[s2], mask[s2], epsilon, rng
+                    )
                     q_next = q1[s2, a2]
                 q1[s, a] = td_update(q1[s, a], alpha, sarsa_target(r, gamma, q_next, terminated))
             elif rule == 1:
@@ -336,7 +414,9 @@ def one_step_control_kernel(
             if terminated or truncated or t >= max_steps:
                 break
             if rule != 0:
-                a2 = _behaviour(q1, q2, s2, mask, epsilon, rule, qsum, rng)
+                if rule == 3:
+                    _sum_rows(q1, q2, s2, qsum)
+                a2 = epsilon_greedy_action(qsum if rule == 3 else q1[s2], mask[s2], epsilon, rng)
             s, a = s2, a2
         returns[k] = g
         lengths[k] = t
@@ -345,11 +425,25 @@ def one_step_control_kernel(
 
 
 # ---------------------------------------------------------------------------- n-step
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def n_step_kernel(
-    env: Any, mask: Any, pi: Any, w: Any, control: bool, n: int, k0: int, k1: int,
-    gamma: float, alpha_params: Any, epsilon_params: Any, max_steps: int, rng: Any,
-    counts: Any, returns: Any, lengths: Any,
+    env: Any,
+    model: Any,
+    mask: Any,
+    pi: Any,
+    w: Any,
+    control: bool,
+    n: int,
+    k0: int,
+    k1: int,
+    gamma: float,
+    alpha_params: Any,
+    epsilon_params: Any,
+    max_steps: int,
+    rng: Any,
+    counts: Any,
+    returns: Any,
+    lengths: Any,
 ) -> int:
     """n-step TD prediction (``control=False``) or n-step Sarsa (S&B 7.1, 7.2), in place.
 
@@ -362,6 +456,8 @@ def n_step_kernel(
     and W(S_tau[, A_tau]) <- W + alpha [G - W]. A truncated episode bootstraps from its
     last state. With n = 1 this is exactly TD(0) or Sarsa.
     """
+    indptr, next_states, probs, rewards, terminal, initial = model
+    n_actions = mask.shape[1]
     m = n + 1
     S_buf = np.zeros(m, dtype=np.int64)
     A_buf = np.zeros(m, dtype=np.int64)
@@ -370,7 +466,7 @@ def n_step_kernel(
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
-        s0 = env_reset(env, rng)
+        s0 = env_reset(env, initial, rng)
         S_buf[0] = s0
         if control:
             A_buf[0] = epsilon_greedy_action(w[s0], mask[s0], epsilon, rng)
@@ -381,7 +477,18 @@ def n_step_kernel(
             if t < T:
                 if not control:  # prediction: A_t ~ pi(. | S_t)
                     A_buf[t % m] = sample_action(pi[S_buf[t % m]], rng)
-                s2, r, terminated, truncated = env_step(env, S_buf[t % m], A_buf[t % m], rng)
+                s2, r, terminated, truncated = env_step(
+                    env,
+                    S_buf[t % m],
+                    A_buf[t % m],
+                    rng,
+                    indptr,
+                    next_states,
+                    probs,
+                    rewards,
+                    terminal,
+                    n_actions,
+                )
                 g += disc * r
                 disc *= gamma
                 R_buf[(t + 1) % m] = r
@@ -392,6 +499,8 @@ def n_step_kernel(
                 if control and not terminated:
                     A_buf[(t + 1) % m] = epsilon_greedy_action(w[s2], mask[s2], epsilon, rng)
             tau = t - n + 1
+            if tau < 0 and t >= T - 1:  # the episode ended before n steps: skip idle t
+                t, tau = n - 1, 0
             if tau >= 0:
                 end = min(tau + n, T)
                 G, p = n_step_return(R_buf, tau, end, gamma)
@@ -412,11 +521,26 @@ def n_step_kernel(
 
 
 # ---------------------------------------------------------------------------- eligibility traces
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def lambda_kernel(
-    env: Any, mask: Any, pi: Any, w: Any, control: bool, lam: float, trace: int,
-    k0: int, k1: int, gamma: float, alpha_params: Any, epsilon_params: Any, max_steps: int,
-    rng: Any, counts: Any, returns: Any, lengths: Any,
+    env: Any,
+    model: Any,
+    mask: Any,
+    pi: Any,
+    w: Any,
+    control: bool,
+    lam: float,
+    trace: int,
+    k0: int,
+    k1: int,
+    gamma: float,
+    alpha_params: Any,
+    epsilon_params: Any,
+    max_steps: int,
+    rng: Any,
+    counts: Any,
+    returns: Any,
+    lengths: Any,
 ) -> int:
     """Tabular TD(lambda) (``control=False``) or Sarsa(lambda) (S&B 12.2, 12.7), in place.
 
@@ -426,19 +550,23 @@ def lambda_kernel(
     each episode. With lambda = 0 this is exactly TD(0) or Sarsa. The step size is read
     at the current entry's update count.
     """
+    indptr, next_states, probs, rewards, terminal, initial = model
+    n_actions = mask.shape[1]
     e = np.zeros_like(w)
     n_rows, n_cols = w.shape
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
         e[:, :] = 0.0
-        s = env_reset(env, rng)
+        s = env_reset(env, initial, rng)
         a = epsilon_greedy_action(w[s], mask[s], epsilon, rng) if control else 0
         g, disc, t = 0.0, 1.0, 0
         while True:
             if not control:
                 a = sample_action(pi[s], rng)
-            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            s2, r, terminated, truncated = env_step(
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
+            )
             t += 1
             g += disc * r
             disc *= gamma
@@ -473,11 +601,26 @@ def lambda_kernel(
 
 
 # ---------------------------------------------------------------------------- Dyna-Q
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def dyna_q_kernel(
-    env: Any, mask: Any, q: Any, n_planning: int, k0: int, k1: int, gamma: float,
-    alpha_params: Any, epsilon_params: Any, max_steps: int, rng: Any, counts: Any,
-    returns: Any, lengths: Any, model_next: Any, model_reward: Any, seen: Any,
+    env: Any,
+    model: Any,
+    mask: Any,
+    q: Any,
+    n_planning: int,
+    k0: int,
+    k1: int,
+    gamma: float,
+    alpha_params: Any,
+    epsilon_params: Any,
+    max_steps: int,
+    rng: Any,
+    counts: Any,
+    returns: Any,
+    lengths: Any,
+    model_next: Any,
+    model_reward: Any,
+    seen: Any,
 ) -> int:
     """Tabular Dyna-Q (S&B 8.2): Q-learning plus ``n_planning`` updates from a learned model.
 
@@ -488,21 +631,26 @@ def dyna_q_kernel(
     ``seen[0]`` counts the pairs seen, ``seen[1:]`` lists them (kept across calls).
     With ``n_planning = 0`` this is exactly Q-learning.
     """
-    n_actions = q.shape[1]
+    indptr, next_states, probs, rewards, terminal, initial = model
+    n_actions = mask.shape[1]
     steps = 0
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
-        s = env_reset(env, rng)
+        s = env_reset(env, initial, rng)
         a = epsilon_greedy_action(q[s], mask[s], epsilon, rng)
         g, disc, t = 0.0, 1.0, 0
         while True:
-            s2, r, terminated, truncated = env_step(env, s, a, rng)
+            s2, r, terminated, truncated = env_step(
+                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
+            )
             t += 1
             g += disc * r
             disc *= gamma
             counts[s, a] += 1
             alpha = schedule_value(alpha_params, float(counts[s, a]))
-            q[s, a] = td_update(q[s, a], alpha, q_learning_target(r, gamma, q[s2], mask[s2], terminated))
+            q[s, a] = td_update(
+                q[s, a], alpha, q_learning_target(r, gamma, q[s2], mask[s2], terminated)
+            )
             if model_next[s, a] == -1:
                 seen[0] += 1
                 seen[seen[0]] = s * n_actions + a
@@ -527,4 +675,3 @@ def dyna_q_kernel(
         lengths[k] = t
         steps += t
     return steps
-

@@ -1,0 +1,218 @@
+"""Temporal-difference learning: environment steps per second, and seeds per second.
+
+* Q-learning and Sarsa on FrozenLake 8x8 (slippery), one core: policylab's compiled
+  kernel, policylab's general path (the same kernel source run as Python over
+  Gymnasium's env), a plain Python loop over Gymnasium's FrozenLake written here
+  (``plain_gymnasium_q_learning``, clearly not policylab), and, where the ``bench`` extra
+  is installed, pymdptoolbox's ``QLearning`` (hiive fork) on the same model.
+* A 100-seed cliff-walking study (Sarsa, epsilon 0.1, alpha 0.5, 500 episodes per seed):
+  seeds per second.
+
+Every figure is the best of a few repeats after a warm-up (numba compiles once and
+caches on disk). Run: ``python benchmarks/bench_td.py`` (or ``make bench``).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import gymnasium as gym
+import numpy as np
+
+import policylab as pl
+from policylab import tabular
+from policylab.tabular import td_kernels as tdk
+from policylab.tabular.common import StateIndex
+from policylab.tabular.kernels import KernelMDP, rng_states
+from policylab.tabular.schedules import Schedule
+
+sys.path.insert(0, os.path.dirname(__file__))
+from _report import write_section
+
+REPEATS = 4
+
+
+def best_of(fn: Callable[[], int], repeats: int = REPEATS) -> tuple[float, int]:
+    """(best steps per second, steps of one repeat)."""
+    best, steps = 0.0, 0
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        steps = fn()
+        dt = time.perf_counter() - t0
+        best = max(best, steps / dt)
+    return best, steps
+
+
+def plain_gymnasium_q_learning(env: Any, n_steps: int, sarsa: bool, seed: int = 0) -> int:
+    """A plain Python loop over Gymnasium's FrozenLake: epsilon-greedy tabular Q-learning
+    (or Sarsa) with NumPy, the way a tutorial writes it. Not policylab code."""
+    rng = np.random.default_rng(seed)
+    q = np.zeros((env.observation_space.n, env.action_space.n))
+    alpha, gamma, eps = 0.1, 0.99, 0.1
+    s, _ = env.reset(seed=seed)
+    a = int(rng.integers(4)) if rng.random() < eps else int(np.argmax(q[s]))
+    for _ in range(n_steps):
+        s2, r, term, trunc, _ = env.step(a)
+        a2 = int(rng.integers(4)) if rng.random() < eps else int(np.argmax(q[s2]))
+        target = r if term else r + gamma * (q[s2, a2] if sarsa else q[s2].max())
+        q[s, a] += alpha * (target - q[s, a])
+        if term or trunc:
+            s, _ = env.reset()
+            a = int(rng.integers(4)) if rng.random() < eps else int(np.argmax(q[s]))
+        else:
+            s, a = s2, a2
+    return n_steps
+
+
+def kernel_steps(
+    mdp: pl.FiniteMDP, rule: int, episodes: int, *, python: bool = False
+) -> Callable[[], int]:
+    """One call of the one-step control kernel, compiled or over Gymnasium (general path)."""
+    S, A = mdp.n_states, mdp.n_actions
+    km = KernelMDP.of(mdp)
+    alpha, eps = Schedule.constant(0.1).params, Schedule.constant(0.1).params
+
+    def run() -> int:
+        q1 = np.zeros((S, A))
+        counts = np.zeros((S, A), dtype=np.int64)
+        returns = np.zeros(episodes)
+        lengths = np.zeros(episodes, dtype=np.int64)
+        first = np.zeros(episodes, dtype=np.int64)
+        rng = rng_states(0, 1)[0]
+        if python:
+            env: Any = tdk.GymStepper(pl.MDPEnv(mdp), StateIndex.discrete(S), 0)
+            model = tdk.model_tuple(None)
+            fn = tdk.one_step_control_kernel.py_func
+        else:
+            env, model = None, tdk.model_tuple(km)
+            fn = tdk.one_step_control_kernel
+        return int(
+            fn(
+                env,
+                model,
+                km.mask,
+                q1,
+                q1,
+                rule,
+                0,
+                episodes,
+                0.99,
+                alpha,
+                eps,
+                100_000,
+                rng,
+                counts,
+                returns,
+                lengths,
+                first,
+            )
+        )
+
+    return run
+
+
+def mdptoolbox_steps(mdp: pl.FiniteMDP, n_iter: int) -> Callable[[], int] | None:
+    """pymdptoolbox (hiive) QLearning on the same model, if the bench extra is installed."""
+    try:
+        from hiive.mdptoolbox.mdp import QLearning
+    except ImportError:
+        try:
+            from mdptoolbox.mdp import QLearning  # type: ignore[no-redef]
+        except ImportError:
+            return None
+    P = [mdp.transitions(a).toarray() for a in mdp.actions]
+    for p in P:  # terminal rows: stay (pymdptoolbox needs stochastic rows)
+        p[mdp.terminal, :] = 0.0
+        p[np.flatnonzero(mdp.terminal), np.flatnonzero(mdp.terminal)] = 1.0
+    R = np.asarray(mdp.expected_reward)
+
+    def run() -> int:
+        np.random.seed(0)
+        QLearning(P, R, 0.99, n_iter=n_iter).run()
+        return n_iter
+
+    return run
+
+
+def main() -> None:
+    load0 = os.getloadavg()[0]
+    lake_env = gym.make("FrozenLake-v1", map_name="8x8")
+    lake = pl.FiniteMDP.from_gymnasium(lake_env, gamma=0.99, name="FrozenLake8x8")
+    rows: list[tuple[str, str, float, int]] = []
+    for rule, name in ((tdk.Q_LEARNING, "Q-learning"), (tdk.SARSA, "Sarsa")):
+        kernel_steps(lake, rule, 50)()  # warm-up (load the compiled kernel)
+        # Compiled and plain loop alternate, so that both see the same machine load.
+        fast = plain = 0.0
+        n_fast = n_plain = 0
+        for _ in range(REPEATS):
+            f, n_fast = best_of(kernel_steps(lake, rule, 100_000), repeats=1)
+            p, n_plain = best_of(
+                lambda r=rule: plain_gymnasium_q_learning(lake_env, 100_000, sarsa=r == tdk.SARSA),
+                repeats=1,
+            )
+            fast, plain = max(fast, f), max(plain, p)
+        general, n_gen = best_of(kernel_steps(lake, rule, 1_000, python=True), repeats=1)
+        rows += [
+            (name, "policylab, compiled kernel (FiniteMDP)", fast, n_fast),
+            (name, "policylab, general path (same kernel as Python, over MDPEnv)", general, n_gen),
+            (
+                name,
+                "plain Python loop over gymnasium FrozenLake (benchmarks/bench_td.py)",
+                plain,
+                n_plain,
+            ),
+        ]
+        if rule == tdk.Q_LEARNING:
+            tb = mdptoolbox_steps(lake, 200_000)
+            if tb is not None:
+                anchor, n_anchor = best_of(tb, repeats=1)
+                rows.append(
+                    (name, "anchor: pymdptoolbox-hiive QLearning (same model)", anchor, n_anchor)
+                )
+        ratio = fast / plain
+        rows.append((name, f"ratio compiled / plain loop: {ratio:,.0f}x", float("nan"), 0))
+
+    cliff = pl.problems.cliff_walking()
+    tabular.seed_study("sarsa", cliff, 2, episodes=10)  # warm-up
+    t0 = time.perf_counter()
+    study = tabular.seed_study("sarsa", cliff, 100, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
+    dt = time.perf_counter() - t0
+
+    lines = [
+        "Environment steps per second on FrozenLake 8x8 (slippery), one core, epsilon 0.1, "
+        "alpha 0.1, gamma 0.99 (best of repeats; target: >= 10 million/s and >= 200x the "
+        f"plain loop). Load average during the run: {load0:.1f} -> {os.getloadavg()[0]:.1f} "
+        "(the machine's 2 cores are shared).",
+        "",
+        "| algorithm | implementation | steps/s | steps timed |",
+        "|---|---|---:|---:|",
+    ]
+    for algo, impl, rate, n in rows:
+        if np.isnan(rate):
+            lines.append(f"| {algo} | **{impl}** | | |")
+        else:
+            lines.append(f"| {algo} | {impl} | {rate:,.0f} | {n:,} |")
+    lines += [
+        "",
+        "100-seed cliff-walking study (Sarsa, epsilon 0.1, alpha 0.5, 500 episodes per seed, "
+        "`policylab.tabular.seed_study`):",
+        "",
+        "| seeds | episodes | steps | seconds | seeds/s | steps/s | mean reward/episode "
+        "(101-500) |",
+        "|---:|---:|---:|---:|---:|---:|---:|",
+        f"| 100 | 500 | {study.steps:,} | {dt:.3f} | {100 / dt:,.0f} | {study.steps / dt:,.0f} | "
+        f"{study.mean_return(100):.1f} |",
+    ]
+    body = "\n".join(lines)
+    print(body)
+    write_section("Temporal-difference", "python benchmarks/bench_td.py", body)
+
+
+if __name__ == "__main__":
+    main()

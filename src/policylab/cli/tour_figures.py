@@ -44,7 +44,7 @@ def loop_figures(ctx: TourContext) -> None:
 
 @tour_section(47, "Figures: the recycling robot's values and policies")
 def robot_figures(ctx: TourContext) -> None:
-    """v of the notes' stochastic policy, and v*, pi*, q* of the robot."""
+    """The values of the notes' stochastic policy, and v*, pi*, q* of the robot."""
     from policylab.plot import save_solution_figure
 
     mdp = pl.problems.recycling_robot()

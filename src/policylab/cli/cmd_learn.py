@@ -192,15 +192,11 @@ def _make_command(spec: Any) -> Callable[..., None]:
             args[opt.param] = val
         res = spec.learner(problem, **args)
         if plot is not None:
-            try:
-                from policylab.plot import (  # type: ignore[import-not-found,unused-ignore]
-                    save_learning_figure,
-                )
-            except ImportError:
-                raise InvalidArgumentError(
-                    "--plot needs policylab.plot (matplotlib figures), which this install lacks"
-                ) from None
-            save_learning_figure(res, plot)
+            from policylab.plot import save_learning_figure
+
+            plot = save_learning_figure(
+                res, plot, title=f"{res.algorithm} on {res.problem}: learning curves"
+            )
         if json_out:
             print_json(res.to_json())
             return
@@ -257,7 +253,8 @@ def _make_command(spec: Any) -> Callable[..., None]:
             Path | None,
             None,
             "--plot",
-            help="Write the learning figure (error curve, tables) to this file.",
+            help="Write the learning figure (error against the exact answer by episode, "
+            "return per episode) to this file: PNG, or SVG/PDF by the suffix.",
         ),
         _opt(
             "checkpoints",

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 import json
 from contextlib import nullcontext
 from pathlib import Path
@@ -118,6 +117,7 @@ def solve_command(
             res.policy,
             plot,
             f"{mdp.name}: optimal values and policy ({METHOD_NAMES[m]})",
+            json_out=json_out,
         )
 
 
@@ -158,7 +158,7 @@ def evaluate_command(
             )
         )
     if plot is not None:
-        _plot(mdp, res.v, pi, plot, f"{mdp.name}: values of policy {policy}")
+        _plot(mdp, res.v, pi, plot, f"{mdp.name}: values of policy {policy}", json_out=json_out)
 
 
 def load_policy(mdp: FiniteMDP, problem: str, spec: str) -> Policy:
@@ -272,15 +272,16 @@ def _solution_table(
     return table
 
 
-def _plot(mdp: FiniteMDP, v: np.ndarray, pi: Policy, path: Path, title: str) -> None:
-    try:
-        save_solution_figure = importlib.import_module("policylab.plot").save_solution_figure
-    except (ImportError, AttributeError) as e:
-        raise InvalidArgumentError(
-            f"--plot needs policylab.plot.save_solution_figure, which this build lacks ({e})"
-        ) from None
-    save_solution_figure(mdp, v, pi, path, title=title)
-    console.print(f"figure written to {path}")
+def _plot(
+    mdp: FiniteMDP, v: np.ndarray, pi: Policy, path: Path, title: str, *, json_out: bool
+) -> None:
+    """Save the figure that fits the problem (values, policy, q) for ``--plot``."""
+    from policylab.planning import action_values
+    from policylab.plot import save_solution_figure
+
+    written = save_solution_figure(mdp, v, pi, path, title=title, q=action_values(mdp, v))
+    if not json_out:  # stdout holds exactly one JSON object with --json
+        console.print(f"figure written to {written}")
 
 
 def register(app: typer.Typer) -> None:

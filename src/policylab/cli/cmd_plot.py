@@ -6,18 +6,13 @@ matplotlib is imported only when a figure is drawn, so ``policylab --help`` stay
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 import typer
 
 from policylab.cli.common import console
-from policylab.exceptions import InvalidArgumentError
 
-if TYPE_CHECKING:
-    from policylab.mdp.finite import FiniteMDP
-    from policylab.mdp.policy import Policy
-
-__all__ = ["named_policy", "register"]
+__all__ = ["register"]
 
 _PROBLEM_HELP = (
     "Problem: a built-in name (mountain-gridworld, recycling-robot, ...; see `policylab "
@@ -40,26 +35,6 @@ plot_app = typer.Typer(
 )
 
 
-def named_policy(mdp: FiniteMDP, problem: str, name: str) -> Policy:
-    """A problem's named policy, or ``uniform`` (``random``), the equiprobable policy.
-
-    Raises:
-        InvalidArgumentError: If the problem has no policy of that name.
-    """
-    from policylab.mdp.policy import Policy
-    from policylab.problems.registry import _REGISTRY
-
-    key = name.strip().lower()
-    if key in ("uniform", "random"):
-        return Policy.uniform(mdp)
-    spec = _REGISTRY.get(problem.strip().lower().replace("_", "-"))
-    policies = spec.policies if spec is not None else {}
-    if key not in policies:
-        known = ", ".join(["uniform", *sorted(policies)])
-        raise InvalidArgumentError(f"problem {problem!r} has no policy {name!r}; known: {known}")
-    return policies[key](mdp)
-
-
 def _out_path(out: Path | None, problem: str, kind: str) -> Path:
     if out is not None:
         return out
@@ -75,8 +50,9 @@ def values_command(
         typer.Option(
             "--policy",
             "-p",
-            help="The policy to evaluate: a named policy of the problem (see `policylab "
-            "problems`) or 'uniform' (the equiprobable random policy).",
+            help="The policy to evaluate: 'uniform' (equiprobable random), a named policy "
+            "of the problem (see `policylab problems`), or a JSON file {state: {action: "
+            "prob}} with labels written by str().",
         ),
     ] = "uniform",
     out: Annotated[Path | None, typer.Option("--out", "-o", help=_OUT_HELP)] = None,
@@ -93,12 +69,13 @@ def values_command(
     title: Annotated[str | None, typer.Option(help="Figure title.")] = None,
 ) -> None:
     """Draw v_pi of a policy (exact, by a linear solve) with the policy itself."""
+    from policylab.cli.cmd_planning import load_policy
     from policylab.cli.common import load_problem
     from policylab.planning import action_values, evaluate_policy
     from policylab.plot import save_solution_figure
 
     mdp = load_problem(problem, gamma)
-    pi = named_policy(mdp, problem, policy)
+    pi = load_policy(mdp, problem, policy)
     v = evaluate_policy(mdp, pi)
     qv = action_values(mdp, v) if q else None
     path = save_solution_figure(
@@ -154,7 +131,8 @@ def q_table_command(
         typer.Option(
             "--policy",
             "-p",
-            help="Draw q_pi of this policy (a named policy or 'uniform'); 'optimal' draws q*.",
+            help="'optimal' draws q*; else q_pi of this policy ('uniform', a named policy "
+            "of the problem, or a JSON file {state: {action: prob}}).",
         ),
     ] = "optimal",
     out: Annotated[Path | None, typer.Option("--out", "-o", help=_OUT_HELP)] = None,
@@ -163,6 +141,7 @@ def q_table_command(
     ] = None,
 ) -> None:
     """Draw the Q-table of a gridworld as four triangles per cell (the notes' figure 9)."""
+    from policylab.cli.cmd_planning import load_policy
     from policylab.cli.common import load_problem
     from policylab.planning import action_values, evaluate_policy, value_iteration
     from policylab.plot import q_table_figure, save_figure
@@ -172,7 +151,7 @@ def q_table_command(
         qv = value_iteration(mdp).q
         what = "q*"
     else:
-        qv = action_values(mdp, evaluate_policy(mdp, named_policy(mdp, problem, policy)))
+        qv = action_values(mdp, evaluate_policy(mdp, load_policy(mdp, problem, policy)))
         what = f"q of policy '{policy}'"
     fig = q_table_figure(
         mdp, qv, title=f"Q-table: {what} — {mdp.name} (γ = {mdp.gamma:g}; bold: greedy action)"

@@ -43,7 +43,7 @@ class TourContext:
 
         path = save_figure(fig, self.out_dir / name)
         self.figure(path)
-        self.console.print(f"[dim]figure: {path}[/]")
+        self.console.print(f"[dim]figure: {path}[/]", soft_wrap=True)
         return path
 
 
@@ -105,5 +105,5 @@ def tour_command(
     if ctx.figures:
         console.rule("[bold]Figures written")
         for p in ctx.figures:
-            console.print(f"  {p}")
+            console.print(f"  {p}", soft_wrap=True)
     console.print("[bold green]Tour complete.[/]")

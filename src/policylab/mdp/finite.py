@@ -674,7 +674,7 @@ class FiniteMDP:
 
     @classmethod
     def from_gymnasium(cls, env: Any, gamma: float = 1.0, *, name: str | None = None) -> FiniteMDP:
-        """Read the model of a Gymnasium toy-text environment (FrozenLake, CliffWalking, Taxi).
+        """Read the model of a Gymnasium toy-text environment (FrozenLake, CliffWalking, Taxi-v4).
 
         The env (or ``env.unwrapped``) must expose ``P[s][a] = [(prob, next_state,
         reward, terminated), ...]``. Duplicate outcomes are summed; a next state reached
@@ -707,7 +707,7 @@ class FiniteMDP:
             raise InvalidMDPError(
                 f"environment {env_id!r} has no transition model `P` (P[s][a] = [(prob, "
                 "next_state, reward, terminated)]); only toy-text style envs such as "
-                "FrozenLake-v1, CliffWalking-v1 or Taxi-v3 can be read as a FiniteMDP"
+                "FrozenLake-v1, CliffWalking-v1 or Taxi-v4 can be read as a FiniteMDP"
             )
         S = len(P)
         A = max(len(P[s]) for s in range(S))

@@ -118,7 +118,7 @@ def learning_curves(result: Any) -> LearningCurves:
         for holder in holders:
             for name, lab in _ERROR_FIELDS_NESTED:
                 val = _field(holder, name)
-                if val is not None and np.ndim(val) == 1:
+                if val is not None and np.ndim(val) == 1 and len(val) > 0:
                     error, label = _array(val, name), lab
                     break
             if error is not None:
@@ -140,6 +140,9 @@ def learning_curves(result: Any) -> LearningCurves:
             raise InvalidArgumentError(
                 f"the error curve has {len(error)} points but {len(checkpoints)} checkpoints"
             )
+    target = _field(result, "error_target")
+    if error is not None and isinstance(target, str):  # what the error is measured against
+        label = label.replace("the exact answer", f"exact {target}")
     if returns is None and error is None:
         raise InvalidArgumentError(
             f"a learning figure needs per-episode returns (episode_returns) or an error curve "
@@ -266,7 +269,7 @@ def learning_figure(
         results: One learner result, a list of results (seeds of one algorithm), or a
             mapping ``{label: [result per seed]}`` (several algorithms on one figure).
         title: Figure title.
-        smooth: Window of the moving average of returns (default: about 1/50 of the
+        smooth: Window of the moving average of returns (default: about 1/25 of the
             episodes).
         confidence: Coverage of the bootstrap band around the mean over seeds.
 
@@ -320,7 +323,7 @@ def learning_figure(
             for c in runs
             if c.episode_returns is not None
         ]
-        window = smooth if smooth is not None else max(1, min(lengths) // 50)
+        window = smooth if smooth is not None else max(1, min(lengths) // 25)
         for k, (lab, runs) in enumerate(groups.items()):
             rets = [c.episode_returns for c in runs if c.episode_returns is not None]
             if not rets:

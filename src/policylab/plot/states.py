@@ -88,10 +88,14 @@ def draw_value_bars(ax: Axes, mdp: FiniteMDP, v: ArrayLike, *, label: str = "v(s
     form = number_format(vals)
     ax.bar_label(bars, labels=[fmt(form, x) for x in vals], padding=2, fontsize=8)
     ax.axhline(0, color="black", lw=0.8)
+    finite = vals[np.isfinite(vals)]
+    lo = min(0.0, float(finite.min())) if finite.size else 0.0
+    hi = max(0.0, float(finite.max())) if finite.size else 1.0
+    pad = 0.18 * ((hi - lo) or 1.0)
+    ax.set_ylim(lo - (pad if lo < 0 else 0.0), hi + (pad if hi > 0 or lo == 0 else 0.0) + 1e-12)
     ax.set_xticks(range(len(vals)), names, rotation=0 if len(vals) <= 8 else 60, fontsize=8)
     ax.set_xlabel("state s" + (" (hatched: terminal)" if mdp.terminal.any() else ""))
     ax.set_ylabel(label)
-    ax.margins(y=0.15)
 
 
 def draw_policy_table(ax: Axes, mdp: FiniteMDP, table: ArrayLike, *, kind: str = "policy") -> None:
@@ -222,8 +226,9 @@ def line_figure(
     action (the random walk) get no policy panel.
 
     Args:
-        mdp: A problem with ``mdp.meta["x"]`` (and optionally ``meta["xlabel"]``,
-            ``meta["action_label"]``).
+        mdp: A problem with ``mdp.meta["x"]`` (NaN for states not drawn) and
+            optionally ``meta["xlabel"]``, ``meta["xticklabels"]`` (one per drawn
+            state) and ``meta["action_label"]``.
         v: Values to draw.
         policy: Policy to draw.
         extra_values: More value curves drawn on the value panel, by legend label
@@ -234,7 +239,7 @@ def line_figure(
     x = _abscissa(mdp)
     if v is None and policy is None and not extra_values:
         raise InvalidArgumentError("line_figure needs v, policy or extra_values to draw")
-    live = ~mdp.terminal
+    live = ~mdp.terminal & np.isfinite(x)  # states without an abscissa are not drawn
     order = np.argsort(x[live], kind="stable")
     xs = x[live][order]
     xlabel = str(mdp.meta.get("xlabel", "state"))
@@ -283,6 +288,7 @@ def line_figure(
                 chosen = acts[probs.argmax(axis=1)]
                 width = float(np.min(np.diff(xs))) * 0.8 if len(xs) > 1 else 0.8
                 ax.bar(xs, chosen, width=width, color="tab:blue")
+                ax.plot(xs, chosen, "o", color="tab:blue", ms=3)  # a chosen 0 stays visible
                 ax.set_title(f"policy: {action_label} chosen in each state")
             else:
                 si, ai = np.nonzero(probs > 1e-3)
@@ -305,7 +311,10 @@ def line_figure(
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel(xlabel)
     labels = [mdp.states[s] for s in np.flatnonzero(live)[order]]
-    if len(xs) <= 20:  # few states: name each one on the axis
+    ticklabels = mdp.meta.get("xticklabels")
+    if ticklabels is not None and len(ticklabels) == len(xs):  # the problem names them
+        axes[-1].set_xticks(xs, [str(t) for t in ticklabels])
+    elif len(xs) <= 20:  # few states: name each one on the axis
         names = [str(lab) for lab in labels]
         same = all(_same_number(lab, x) for lab, x in zip(labels, xs, strict=True))
         axes[-1].set_xticks(xs, [fmt("{:g}", x) for x in xs] if same else names)
@@ -431,6 +440,11 @@ def policy_map_figure(
         ax.set_title(f"state values {value_label}")
         ax.set_xlabel(xlab)
         ax.set_ylabel(ylab)
+    from matplotlib.ticker import MaxNLocator
+
+    for ax in axes:
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     fig.suptitle(title_of(mdp, "Solution", title))
     return fig
 
@@ -464,7 +478,10 @@ def _blackjack_states(mdp: FiniteMDP) -> list[tuple[int, int, int, bool]]:
                 f"{mdp.name!r}: Blackjack states must be labelled (player_sum, dealer_card, "
                 f"usable_ace); got {lab!r}"
             )
-        out.append((s, int(lab[0]), _dealer_value(lab[1]), bool(lab[2])))
+        ace = lab[2]
+        if not isinstance(ace, (bool, int, np.bool_)) or isinstance(ace, str):
+            continue  # a state of its own kind, e.g. (21, d, "natural"): not on the chart
+        out.append((s, int(lab[0]), _dealer_value(lab[1]), bool(ace)))
     if not out:
         raise InvalidArgumentError(f"{mdp.name!r} has no non-terminal Blackjack state to draw")
     return out
@@ -483,14 +500,33 @@ def blackjack_figure(
     *,
     title: str | None = None,
     value_label: str = "v(s)",
+    player_sums: tuple[int, int] | None = (12, 21),
 ) -> Figure:
     """Blackjack in the layout of Sutton & Barto's Figure 5.2.
 
     Rows: usable ace, no usable ace. Columns: v as a heat map and the policy (the
     action with the highest probability in each state). The dealer's showing card
-    (A, 2, ..., 10) runs along x, the player's sum up the y axis.
+    (A, 2, ..., 10) runs along x, the player's sum up the y axis. States whose third
+    label is not a usable-ace flag (a natural, ``(21, d, "natural")``) are not charted.
+
+    Args:
+        mdp: The Blackjack problem (``meta["blackjack"]``, states labelled
+            (player_sum, dealer_card, usable_ace)).
+        v: Values to draw.
+        policy: Policy to draw.
+        title: Figure title.
+        value_label: Colour-bar label.
+        player_sums: Range of player sums charted (the book's 12..21, below which
+            hitting is always right); None charts every sum.
     """
     info = _blackjack_states(mdp)
+    if player_sums is not None:
+        lo, hi = player_sums
+        info = [x for x in info if lo <= x[1] <= hi]
+        if not info:
+            raise InvalidArgumentError(
+                f"{mdp.name!r} has no Blackjack state with a player sum in {lo}..{hi}"
+            )
     if v is None and policy is None:
         raise InvalidArgumentError("blackjack_figure needs v or policy to draw")
     sums = sorted({p for _, p, _, _ in info})

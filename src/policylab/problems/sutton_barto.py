@@ -50,8 +50,10 @@ def gridworld_5x5(gamma: float = 0.9) -> FiniteMDP:
         return -1.0 if frm == to else 0.0
 
     return grid_mdp(
-        ["....."] * 5,
-        {".": "floor"},
+        # A, A', B, B' are marked on the map (as the book draws them) for figures;
+        # their dynamics come from ``jumps``.
+        [".A.B.", ".....", "...b.", ".....", ".a..."],
+        {".": "floor", "A": "A", "a": "A'", "B": "B", "b": "B'"},
         reward,
         terminal_kinds=(),
         jumps={a: (a2, ra), b: (b2, rb)},

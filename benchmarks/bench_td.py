@@ -189,8 +189,8 @@ def main() -> None:
         "Environment steps per second on FrozenLake 8x8 (slippery), one core, epsilon 0.1, "
         "alpha 0.1, gamma 0.99 (best of repeats; target: >= 10 million/s and >= 200x the "
         f"plain loop). Load average during the run: {load0:.1f} -> {os.getloadavg()[0]:.1f} "
-        "(the machine's 2 cores are shared with other developers' work: figures are lower "
-        "and noisier than on a quiet machine).",
+        "on 2 cores (above 1, other work shared the machine: figures are lower and noisier). "
+        "The plain loop's own speed varies by up to 1.5x between runs, and the ratio with it.",
         "",
         "| algorithm | implementation | steps/s | steps timed |",
         "|---|---|---:|---:|",

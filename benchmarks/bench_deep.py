@@ -263,8 +263,8 @@ def main() -> None:
     notes = (
         f"\n\n{speedup_text}\n\n"
         f"Seeds 0-{args.seeds - 1}; evaluations ({evals} steps) on 100 greedy episodes, not "
-        "counted in the times. Both libraries run with torch.set_num_threads(1). The machine "
-        "was shared with other developers' jobs: load average "
+        "counted in the times. Both libraries run with torch.set_num_threads(1), one after "
+        "the other. Load average "
         f"{load0[0]:.1f} at the start and {load1[0]:.1f} at the end on 2 cores; whole "
         f"benchmark {time.perf_counter() - t0:.0f} s. policylab uses its `policylab train` "
         "defaults (`pl.deep.default_config`: the zoo settings plus the changes in "

@@ -117,8 +117,10 @@ def value_iteration(
     start[mdp.terminal] = 0.0
     term = mdp.terminal
 
+    work = np.empty((mdp.n_states, mdp.n_actions))  # q, reused by every sweep
+
     def sync(v: NDArray[np.float64]) -> NDArray[np.float64]:
-        out, _ = optimality_sweep(mdp, g, v)
+        out, _ = optimality_sweep(mdp, g, v, work)
         return out
 
     def gs(v: NDArray[np.float64]) -> float:
@@ -391,8 +393,9 @@ def modified_policy_iteration(
     bound: float | None = None
     residual = np.inf
     rows = np.arange(S)
+    work = np.empty((S, mdp.n_actions))  # q, reused by every sweep
     for _ in range(max_iter):
-        tv, act = optimality_sweep(mdp, g, v)
+        tv, act = optimality_sweep(mdp, g, v, work)
         d = tv - v
         residual = float(np.abs(d).max())
         history.append(residual)

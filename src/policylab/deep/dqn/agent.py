@@ -191,11 +191,10 @@ class DQN(Agent):
         obs, next_obs = torch.as_tensor(b.obs), torch.as_tensor(b.next_obs)
         with torch.no_grad():
             next_target = self.q_target(next_obs)
-        if cfg.double_q:  # one pass of the online network over S and S' together
-            q_all = self.q(torch.cat([obs, next_obs]))
-            q_obs, next_online = q_all[: len(obs)], q_all[len(obs) :].detach()
-        else:
-            q_obs, next_online = self.q(obs), None
+            # Double DQN's online pass over S' needs no graph: outside the backward pass
+            # it costs one forward, where a joint pass over [S; S'] doubled the backward.
+            next_online = self.q(next_obs) if cfg.double_q else None
+        q_obs = self.q(obs)
         y = q_learning_targets(
             torch.as_tensor(b.returns), torch.as_tensor(b.discounts), next_target, next_online
         )

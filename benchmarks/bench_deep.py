@@ -13,8 +13,12 @@ Acrobot-v1 -100, LunarLander-v3 200).
   its budget"); its table row gives that full time, whether the last evaluation solved
   the task, and also the time at which an evaluation first reached the threshold.
 
+With ``--full-budget`` policylab also trains its whole budget (the time to solve is then
+the training time until its first solved evaluation, as for SB3), so that the final
+returns of both libraries at the same budget can be compared.
+
 Usage: ``python benchmarks/bench_deep.py [--seeds 5] [--envs CartPole-v1,Acrobot-v1]
-[--algos ppo,dqn]``.
+[--algos ppo,dqn] [--full-budget]``.
 """
 
 from __future__ import annotations
@@ -72,7 +76,7 @@ def _evaluate(act: Any, env_id: str, seed: int) -> float:
     return float(np.mean(run_episodes(act, env_id, 100, seed=10_000 + seed, n_envs=100)))
 
 
-def run_policylab(algo: str, env_id: str, seed: int) -> Result:
+def run_policylab(algo: str, env_id: str, seed: int, full_budget: bool = False) -> Result:
     fields, budget = pl.deep.default_config(algo, env_id)
     assert budget is not None
     res = Result("policylab", algo, env_id, seed, budget)
@@ -90,16 +94,16 @@ def run_policylab(algo: str, env_id: str, seed: int) -> Result:
         mean = _evaluate(lambda o: a.predict(o, deterministic=True), env_id, seed)
         clock.pause(time.perf_counter() - t_eval)
         res.evals.append((a.num_timesteps, mean))
-        if mean >= thr:
+        if mean >= thr and res.solve_steps is None:
             res.solve_seconds, res.solve_steps = t, a.num_timesteps
-            return False
+            return None if full_budget else False
         return None
 
     agent.learn(budget, callback=cb)
     res.train_seconds, res.steps = clock.elapsed(), agent.num_timesteps
     res.final_mean = (
         res.evals[-1][1]
-        if res.solve_steps
+        if res.solve_steps and not full_budget
         else _evaluate(lambda o: agent.predict(o, deterministic=True), env_id, seed)
     )
     return res
@@ -109,7 +113,7 @@ def _linear(v: float) -> Any:
     return lambda progress_remaining: progress_remaining * v
 
 
-def run_sb3(algo: str, env_id: str, seed: int) -> Result:
+def run_sb3(algo: str, env_id: str, seed: int, full_budget: bool = True) -> Result:
     from stable_baselines3 import DQN, PPO
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.env_util import make_vec_env
@@ -177,7 +181,7 @@ def _fmt(xs: list[float]) -> str:
     return f"{statistics.median(xs):.1f} ({min(xs):.1f}-{max(xs):.1f})"
 
 
-def table(results: list[Result]) -> str:
+def table(results: list[Result], full_budget: bool = False) -> str:
     rows = [
         "| algorithm | env | library | budget (steps) | seeds solved "
         "| time to solve, s: median (range) | training time at budget or to solve, s "
@@ -191,7 +195,7 @@ def table(results: list[Result]) -> str:
             if not rs:
                 continue
             thr = THRESHOLD[env_id]
-            if lib == "policylab":
+            if lib == "policylab" and not full_budget:
                 solved = [r for r in rs if r.solve_steps is not None]
                 n_solved = f"{len(solved)}/{len(rs)}"
             else:
@@ -217,6 +221,11 @@ def main() -> None:
     ap.add_argument("--algos", default="ppo,dqn")
     ap.add_argument("--no-write", action="store_true")
     ap.add_argument("--section", default="Deep RL")
+    ap.add_argument(
+        "--full-budget",
+        action="store_true",
+        help="policylab trains its whole budget too, instead of stopping once solved",
+    )
     args = ap.parse_args()
     torch.set_num_threads(1)
     results: list[Result] = []
@@ -228,7 +237,7 @@ def main() -> None:
                 continue
             for seed in range(args.seeds):
                 for runner in (run_policylab, run_sb3):
-                    r = runner(algo, env_id, seed)
+                    r = runner(algo, env_id, seed, args.full_budget)
                     results.append(r)
                     print(
                         f"{r.library:10s} {algo} {env_id} seed {seed}: "
@@ -238,25 +247,33 @@ def main() -> None:
                         flush=True,
                     )
     load1 = os.getloadavg()
-    body = table(results)
+    body = table(results, args.full_budget)
     speedups = []
     for algo, env_id in sorted({(r.algo, r.env_id) for r in results}):
-        ours = [
-            r.solve_seconds
-            for r in results
-            if (r.algo, r.env_id, r.library) == (algo, env_id, "policylab") and r.solve_seconds
-        ]
-        sb3 = [
-            r.train_seconds
-            for r in results
-            if (r.algo, r.env_id, r.library) == (algo, env_id, "SB3 (zoo)")
-        ]
-        if ours and sb3:
+        mine = [r for r in results if (r.algo, r.env_id) == (algo, env_id)]
+        ours = [r for r in mine if r.library == "policylab"]
+        sb3 = [r for r in mine if r.library == "SB3 (zoo)"]
+        ours_solve = [r.solve_seconds for r in ours if r.solve_seconds]
+        sb3_solve = [r.solve_seconds for r in sb3 if r.solve_seconds]
+        sb3_budget = statistics.median([r.train_seconds for r in sb3]) if sb3 else None
+        name = f"{algo.upper()} {env_id}"
+        if ours_solve and sb3_budget and not args.full_budget:
+            o = statistics.median(ours_solve)
             speedups.append(
-                f"- {algo.upper()} {env_id}: SB3's median training time at its budget / "
-                f"policylab's median time to solve = {statistics.median(sb3):.1f} s / "
-                f"{statistics.median(ours):.1f} s = "
-                f"{statistics.median(sb3) / statistics.median(ours):.1f}x"
+                f"- {name}: SB3's median training time at its budget / policylab's median "
+                f"time to solve = {sb3_budget:.1f} s / {o:.1f} s = {sb3_budget / o:.1f}x"
+            )
+        if ours and sb3_budget and args.full_budget:
+            o = statistics.median([r.train_seconds for r in ours])
+            speedups.append(
+                f"- {name}: training time at the same budget, SB3 / policylab = "
+                f"{sb3_budget:.1f} s / {o:.1f} s = {sb3_budget / o:.1f}x"
+            )
+        if ours_solve and sb3_solve:
+            o, b = statistics.median(ours_solve), statistics.median(sb3_solve)
+            speedups.append(
+                f"- {name}: time to the first solved evaluation, SB3 / policylab = "
+                f"{b:.1f} s / {o:.1f} s = {b / o:.1f}x"
             )
     evals = ", ".join(f"{k} every {v:,}" for k, v in EVAL_EVERY.items())
     speedup_text = "\n".join(speedups)
@@ -277,7 +294,7 @@ def main() -> None:
         write_section(
             args.section,
             f"python benchmarks/bench_deep.py --seeds {args.seeds} --envs {args.envs} "
-            f"--algos {args.algos}",
+            f"--algos {args.algos}" + (" --full-budget" if args.full_budget else ""),
             body + notes,
         )
 

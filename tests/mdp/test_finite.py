@@ -285,3 +285,17 @@ def test_unknown_label_lookup():
         mdp.state_index("medium")
     with pytest.raises(UnknownLabelError, match="unknown action 'fly'"):
         mdp.action_index("fly")
+
+
+def test_grid_wind_needs_one_value_per_column():
+    with pytest.raises(InvalidMDPError, match="one upward push per column: 3 columns, 2 values"):
+        pl.grid_mdp(
+            ["S.G"], {"S": "start", ".": "grass", "G": "goal"}, lambda *_: -1.0, wind=[0, 1]
+        )
+    mdp = pl.grid_mdp(
+        ["...", "S.G"], {"S": "start", ".": "grass", "G": "goal"}, lambda *_: -1.0, wind=[0, 1, 0]
+    )
+    assert mdp.grid is not None and mdp.grid.wind == (0, 1, 0)
+    # the wind of the column the move starts in: right from (1, 1) lands one row up
+    out = mdp.outcomes((1, 1), "right")
+    assert [o[1] for o in out] == [(0, 2)]

@@ -72,6 +72,53 @@ def test_stochastic_policy_draws_one_arrow_per_action_with_probabilities():
     assert sum(t.get_text() == "0.25" for t in ax.texts) == 12
 
 
+def test_all_optimal_actions_of_figure_3_5_are_drawn_with_equal_arrows():
+    # Sutton & Barto Figure 3.5 (right): in the 5 x 5 gridworld's top-left cell the only
+    # optimal move is right; in A (row 0, column 1) all four moves tie (each jumps to
+    # A'); in the bottom-left cell, up and right tie.
+    mdp = pl.problems.gridworld_5x5()
+    res = pl.value_iteration(mdp, tol=1e-10)
+    ties = pl.optimal_actions(mdp, res.q)
+    fig = gridworld_figure(mdp, res.v, ties)
+    ax = _ax(fig, "greedy actions")
+    arrows = [p for p in ax.patches if isinstance(p, FancyArrow)]
+    assert len(arrows) == int(ties.sum())
+    assert ties[mdp.state_index((0, 1))].sum() == 4
+    assert [mdp.actions[a] for a in np.flatnonzero(ties[mdp.state_index((4, 0))])] == [
+        "up",
+        "right",
+    ]
+    lengths = {round(float(np.ptp(a.get_xy(), axis=0).max()), 6) for a in arrows}
+    assert len(lengths) == 1  # one arrow length: a set of actions, not probabilities
+    assert not any(t.get_text() == "0.5" for t in ax.texts)
+
+
+def test_solution_figure_with_ties_draws_the_tie_set(tmp_path):
+    mdp = pl.problems.gridworld_5x5()
+    res = pl.value_iteration(mdp, tol=1e-10)
+    from policylab.plot import solution_figure
+
+    one = solution_figure(mdp, res.v, res.policy, q=res.q)
+    every = solution_figure(mdp, res.v, res.policy, q=res.q, ties=True)
+    n_one = sum(isinstance(p, FancyArrow) for p in _ax(one, "policy").patches)
+    n_all = sum(isinstance(p, FancyArrow) for p in _ax(every, "greedy actions").patches)
+    assert n_one == mdp.n_states  # no terminal state: one arrow per cell
+    assert n_all == int(pl.optimal_actions(mdp, res.q).sum()) > n_one
+
+
+def test_an_action_set_is_the_uniform_policy_over_it_in_other_figures():
+    from policylab.plot._common import policy_probs
+
+    mdp = pl.problems.gamblers_problem()
+    res = pl.value_iteration(mdp)
+    ties = pl.optimal_actions(mdp, res.q)
+    probs = policy_probs(mdp, ties)
+    live = ~mdp.terminal
+    np.testing.assert_allclose(probs[live].sum(axis=1), 1.0)
+    rows, _ = np.nonzero(ties)
+    np.testing.assert_allclose(probs[ties], 1.0 / ties.sum(axis=1)[rows])
+
+
 def test_q_table_triangles_hold_q_and_mark_the_greedy_action():
     mdp = pl.problems.slippery_gridworld()
     v = evaluate(mdp, pl.Policy.uniform(mdp))
@@ -151,3 +198,23 @@ def test_episode_figure_shows_the_path_and_the_return(tmp_path):
     with pytest.raises(InvalidArgumentError, match="grid-shaped"):
         episode_figure(pl.problems.recycling_robot(), ep)
     assert save_figure(interaction_loop_figure(), tmp_path / "loop.png").stat().st_size > 0
+
+
+def test_windy_gridworld_shows_each_columns_wind():
+    mdp = pl.problems.windy_gridworld()
+    fig = gridworld_figure(mdp, np.zeros(mdp.n_states))
+    labels = [t.get_text() for t in fig.axes[0].get_xticklabels()]
+    # Example 6.5: wind 0 0 0 1 1 1 2 2 1 0
+    assert labels == [
+        "0\n·",
+        "1\n·",
+        "2\n·",
+        "3\n↑1",
+        "4\n↑1",
+        "5\n↑1",
+        "6\n↑2",
+        "7\n↑2",
+        "8\n↑1",
+        "9\n·",
+    ]
+    assert "wind" in fig.axes[0].get_xlabel()

@@ -118,6 +118,7 @@ def solve_command(
             plot,
             f"{mdp.name}: optimal values and policy ({METHOD_NAMES[m]})",
             json_out=json_out,
+            ties=True,
         )
 
 
@@ -273,13 +274,25 @@ def _solution_table(
 
 
 def _plot(
-    mdp: FiniteMDP, v: np.ndarray, pi: Policy, path: Path, title: str, *, json_out: bool
+    mdp: FiniteMDP,
+    v: np.ndarray,
+    pi: Policy,
+    path: Path,
+    title: str,
+    *,
+    json_out: bool,
+    ties: bool = False,
 ) -> None:
-    """Save the figure that fits the problem (values, policy, q) for ``--plot``."""
+    """Save the figure that fits the problem (values, policy, q) for ``--plot``.
+
+    ``ties``: v is v_*, so a gridworld's policy panel draws every optimal action.
+    """
     from policylab.planning import action_values
     from policylab.plot import save_solution_figure
 
-    written = save_solution_figure(mdp, v, pi, path, title=title, q=action_values(mdp, v))
+    written = save_solution_figure(
+        mdp, v, pi, path, title=title, q=action_values(mdp, v), ties=ties
+    )
     if not json_out:  # stdout holds exactly one JSON object with --json
         console.print(f"figure written to {written}")
 

@@ -23,6 +23,8 @@ def textbook_figures(ctx: TourContext) -> None:
         mdp = pl.problems.get_problem(name)
         res = pl.value_iteration(mdp)
         ctx.figure(
-            save_solution_figure(mdp, res.v, res.policy, ctx.out_dir / f"14_{name}.png", q=res.q)
+            save_solution_figure(
+                mdp, res.v, res.policy, ctx.out_dir / f"14_{name}.png", q=res.q, ties=True
+            )
         )
     ctx.console.print(f"Optimal values and policies drawn for {', '.join(names)}.")

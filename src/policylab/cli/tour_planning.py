@@ -129,7 +129,7 @@ def mountain_optimum(ctx: TourContext) -> None:
         gridworld_figure(
             mdp,
             res.v,
-            res.policy,
+            pl.optimal_actions(mdp, res.q),  # every optimal action, as in Figure 3.5
             q=pl.action_values(mdp, res.v),
             title="Mountain gridworld: v_*, pi_* and q_*",
         ),

@@ -40,6 +40,7 @@ class GridLayout:
             ``cells`` but present here (walls) are not states.
         thin_walls: Pairs of adjacent cells with a wall between them.
         moves: The (d_row, d_col) of each action, in action order (for arrows).
+        wind: The upward push of each column (the windy gridworld), or None.
     """
 
     shape: tuple[int, int]
@@ -47,6 +48,7 @@ class GridLayout:
     kinds: Mapping[Cell, str] = field(default_factory=dict)
     thin_walls: frozenset[frozenset[Cell]] = frozenset()
     moves: tuple[Cell, ...] = tuple(MOVES.values())
+    wind: tuple[int, ...] | None = None
 
     def state_at(self, cell: Cell) -> int | None:
         """The state index in a cell, or None if the cell holds no state."""
@@ -120,6 +122,11 @@ def grid_mdp(
             f"grid rows must be non-empty and of equal length; got {list(rows)!r}"
         )
     n_rows, n_cols = len(rows), len(rows[0])
+    if wind is not None and len(wind) != n_cols:
+        raise InvalidMDPError(
+            f"wind must give one upward push per column: {n_cols} columns, "
+            f"{len(wind)} values given ({list(wind)!r})"
+        )
     kinds: dict[Cell, str] = {}
     for r, line in enumerate(rows):
         for c, ch in enumerate(line):
@@ -178,6 +185,7 @@ def grid_mdp(
         kinds=kinds,
         thin_walls=walls,
         moves=tuple(move_list),
+        wind=None if wind is None else tuple(int(w) for w in wind),
     )
     return FiniteMDP.from_dynamics(
         dynamics,

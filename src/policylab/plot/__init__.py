@@ -125,8 +125,14 @@ def solution_figure(
     *,
     title: str | None = None,
     q: ArrayLike | None = None,
+    ties: bool = False,
 ) -> Figure:
     """The figure that fits the problem (see :func:`figure_kind`), drawing v and the policy.
+
+    With ``ties=True`` and ``q`` given, a gridworld's policy panel draws every action
+    that is greedy under ``q`` (:func:`policylab.optimal_actions`: with q = q_*, all
+    optimal actions), as Sutton & Barto's Figure 3.5 does, rather than ``policy``'s one
+    action per state.
 
     ``q`` is drawn where the figure has a view for it (the gridworld's Q-table, the
     small problem's table) and otherwise left out.
@@ -137,6 +143,10 @@ def solution_figure(
     if kind == "blackjack":
         return blackjack_figure(mdp, v, policy, title=title)
     if kind == "gridworld":
+        if ties and q is not None:
+            from policylab.planning import optimal_actions
+
+            policy = optimal_actions(mdp, q)
         if q is not None:
             from policylab.plot.grid import q_triangles, require_grid
 
@@ -160,10 +170,12 @@ def save_solution_figure(
     *,
     title: str | None = None,
     q: ArrayLike | None = None,
+    ties: bool = False,
 ) -> Path:
     """Draw a solution with the figure that fits the problem and save it.
 
-    PNG by default; SVG or PDF when ``path`` ends in ``.svg`` or ``.pdf``.
+    PNG by default; SVG or PDF when ``path`` ends in ``.svg`` or ``.pdf``. ``ties``: see
+    :func:`solution_figure`.
 
     Returns:
         The path written.
@@ -172,7 +184,7 @@ def save_solution_figure(
         InvalidArgumentError: If no figure fits the problem, or the suffix is unknown.
     """
     _check_suffix(path)
-    fig = solution_figure(mdp, v, policy, title=title, q=q)
+    fig = solution_figure(mdp, v, policy, title=title, q=q, ties=ties)
     return save_figure(fig, path)
 
 

@@ -140,6 +140,9 @@ def check_q(mdp: FiniteMDP, q: ArrayLike, what: str = "q") -> NDArray[np.float64
 def policy_probs(mdp: FiniteMDP, policy: Policy | ArrayLike) -> NDArray[np.float64]:
     """pi(a | s) as an (S, A) array, from a :class:`Policy` of this MDP or an array.
 
+    A boolean (S, A) array is a set of actions per state (such as all optimal actions,
+    :func:`policylab.optimal_actions`): the policy uniform over them.
+
     Raises:
         InvalidPolicyError: If the policy belongs to an MDP with other states or
             actions, or the array is not a valid policy of this MDP.
@@ -152,7 +155,11 @@ def policy_probs(mdp: FiniteMDP, policy: Policy | ArrayLike) -> NDArray[np.float
                 f"{mdp.n_states} states, {mdp.n_actions} actions expected)"
             )
         return np.asarray(policy.probs)
-    return np.asarray(Policy.from_array(mdp, np.asarray(policy, dtype=np.float64)).probs)
+    arr = np.asarray(policy)
+    if arr.dtype == np.bool_ and arr.shape == (mdp.n_states, mdp.n_actions):
+        counts = arr.sum(axis=1, keepdims=True)
+        arr = np.divide(arr, counts, out=np.zeros(arr.shape), where=counts > 0)
+    return np.asarray(Policy.from_array(mdp, np.asarray(arr, dtype=np.float64)).probs)
 
 
 def number_format(values: ArrayLike) -> str:

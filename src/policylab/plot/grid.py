@@ -96,6 +96,11 @@ def _base_grid(ax: Axes, mdp: FiniteMDP, grid: GridLayout, *, label_states: bool
     ax.set_yticks(range(rows))
     ax.tick_params(length=0, labelsize=8)
     ax.set_xlabel("column")
+    if grid.wind is not None:  # the windy gridworld: each column's upward push under it
+        ax.set_xticks(
+            range(cols), [f"{c}\n↑{w}" if w else f"{c}\n·" for c, w in enumerate(grid.wind)]
+        )
+        ax.set_xlabel("column (↑ wind strength)")
     ax.set_ylabel("row")
     for r in range(rows + 1):
         ax.axhline(r - 0.5, color="white", lw=1.0, zorder=2)
@@ -237,15 +242,22 @@ def draw_grid_policy(ax: Axes, mdp: FiniteMDP, policy: Policy | ArrayLike) -> No
 
     Arrow length is proportional to pi(a | s) (a deterministic policy has one long
     arrow per cell); directions come from ``mdp.grid.moves``. An action that does not
-    move (a "stay" move) is a dot whose size grows with its probability.
+    move (a "stay" move) is a dot whose size grows with its probability. A boolean
+    (S, A) array (a set of actions per state, such as all optimal actions) draws an
+    arrow of the same length for each action in the set, as Sutton & Barto's Figure 3.5
+    shows tied optimal actions.
     """
     grid = require_grid(mdp, "a policy arrow figure")
+    as_set = _is_action_set(mdp, policy)
     probs = policy_probs(mdp, policy)
+    if as_set:
+        probs = (probs > 0).astype(np.float64)  # one (full) arrow length for every action
     ax.imshow(np.full(grid.shape, 0.08), cmap=_cmap("Greys"), vmin=0, vmax=1, zorder=0)
     _base_grid(ax, mdp, grid)
     live = ~mdp.terminal
-    deterministic = bool(np.all(np.isclose(probs[live].max(axis=1), 1.0))) if live.any() else True
-    write_p = not deterministic and grid.shape[1] <= 8
+    # one action per state (probability 1, and no second action in a set of ties)
+    deterministic = bool(np.all((probs[live] > 0).sum(axis=1) == 1)) if live.any() else True
+    write_p = not deterministic and not as_set and grid.shape[1] <= 8
     for s, (r, c) in enumerate(grid.cells):
         if mdp.terminal[s]:
             continue
@@ -286,6 +298,16 @@ def draw_grid_policy(ax: Axes, mdp: FiniteMDP, policy: Policy | ArrayLike) -> No
                     color="0.15",
                     zorder=9,
                 )
+
+
+def _is_action_set(mdp: FiniteMDP, policy: Policy | ArrayLike) -> bool:
+    """True when ``policy`` is a boolean (S, A) set of actions rather than pi(a | s)."""
+    from policylab.mdp.policy import Policy
+
+    if isinstance(policy, Policy):
+        return False
+    arr = np.asarray(policy)
+    return arr.dtype == np.bool_ and arr.shape == (mdp.n_states, mdp.n_actions)
 
 
 def _grid_cells_only(mdp: FiniteMDP, figure: str) -> GridLayout:
@@ -456,7 +478,15 @@ def gridworld_figure(
         probs = policy_probs(mdp, policy)
         live = ~mdp.terminal
         det = bool(np.all(np.isclose(probs[live].max(axis=1), 1.0)))
-        axes[i].set_title("policy π(s)" if det else "policy π(a|s)\n(arrow length ∝ probability)")
+        if _is_action_set(mdp, policy):
+            ties = bool((np.asarray(policy).sum(axis=1) > 1).any())
+            axes[i].set_title(
+                "greedy actions\n(every tied action drawn)" if ties else "policy π(s)"
+            )
+        else:
+            axes[i].set_title(
+                "policy π(s)" if det else "policy π(a|s)\n(arrow length ∝ probability)"
+            )
         i += 1
     if q is not None:
         qa = check_q(mdp, q)

@@ -105,7 +105,10 @@ def optimal_command(
     ] = True,
     title: Annotated[str | None, typer.Option(help="Figure title.")] = None,
 ) -> None:
-    """Solve the problem exactly (value iteration) and draw v*, an optimal policy and q*."""
+    """Solve the problem exactly (value iteration) and draw v*, an optimal policy and q*.
+
+    On a gridworld, every optimal action of a state gets an arrow (as in Figure 3.5).
+    """
     from policylab.cli.common import load_problem
     from policylab.planning import value_iteration
     from policylab.plot import save_solution_figure
@@ -119,6 +122,7 @@ def optimal_command(
         _out_path(out, problem, "optimal"),
         q=res.q if q else None,
         title=title or f"Optimal values v* and policy π* — {mdp.name} (γ = {mdp.gamma:g})",
+        ties=True,
     )
     console.print(f"wrote {path}")
 

@@ -1,0 +1,242 @@
+"""Checks of user input, written once and used by every entry point (API and CLI).
+
+Every check returns the value in its canonical type, or raises a policylab error
+(:class:`~policylab.exceptions.InvalidArgumentError` unless said otherwise) whose
+message names the argument, what was expected and what was given, with numbers
+written so that the problem is visible (``fmt_number``), never as ``np.float64(...)``.
+
+The CLI maps these errors to exit code 2 with the message on one line, so a value
+checked here gets the same words whether it came from Python or the command line.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from policylab.exceptions import InvalidArgumentError
+
+__all__ = [
+    "MAX_SEED",
+    "check_count",
+    "check_fraction",
+    "check_gamma",
+    "check_int",
+    "check_number",
+    "check_output_dir",
+    "check_output_file",
+    "check_positive",
+    "check_seed",
+    "fmt_number",
+    "normalize_name",
+]
+
+MAX_SEED = 2**63 - 1
+"""Largest seed accepted (NumPy's ``SeedSequence`` takes any non-negative int; numba's
+RNG state and torch's ``manual_seed`` take 64-bit values)."""
+
+
+def fmt_number(x: Any) -> str:
+    """A number as a user should read it in a message.
+
+    Floats get the shortest form that round-trips (``repr`` of a Python float), so
+    ``1 + 3e-8`` shows as ``1.00000003`` rather than ``1``; NumPy scalars are written
+    like Python numbers (``-0.5``, not ``np.float64(-0.5)``); anything else uses ``repr``.
+    """
+    if isinstance(x, bool | np.bool_):
+        return str(bool(x))
+    if isinstance(x, int | np.integer):
+        return str(int(x))
+    if isinstance(x, float | np.floating):
+        return repr(float(x))
+    return repr(x)
+
+
+def normalize_name(name: str) -> str:
+    """The canonical spelling of a registry name: stripped, lower case, ``-`` for ``_``.
+
+    ``"Q_Learning "`` and ``"q-learning"`` name the same algorithm; every registry
+    (problems, algorithms) looks names up through this one function.
+    """
+    return name.strip().lower().replace("_", "-")
+
+
+def check_number(
+    value: Any,
+    name: str,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
+    """A finite real number within optional bounds.
+
+    Args:
+        value: What the user gave.
+        name: The argument's name, as the user knows it (``"alpha"``, ``"--alpha"``).
+        low: Lower bound (inclusive unless ``low_open``).
+        high: Upper bound (inclusive unless ``high_open``).
+        low_open: Exclude ``low`` itself.
+        high_open: Exclude ``high`` itself.
+
+    Returns:
+        The value as a Python float.
+
+    Raises:
+        InvalidArgumentError: Not a number, not finite, or out of bounds.
+    """
+    if isinstance(value, bool | np.bool_ | str | bytes):
+        raise InvalidArgumentError(f"{name} must be a number; got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(
+            f"{name} must be a number; got {type(value).__name__} {value!r}"
+        ) from None
+    if not math.isfinite(x):
+        raise InvalidArgumentError(f"{name} must be a finite number; got {fmt_number(x)}")
+    lo_bad = low is not None and (x <= low if low_open else x < low)
+    hi_bad = high is not None and (x >= high if high_open else x > high)
+    if lo_bad or hi_bad:
+        raise InvalidArgumentError(
+            f"{name} must be {_interval(low, high, low_open, high_open)}; got {fmt_number(x)}"
+        )
+    return x
+
+
+def _bound(x: float) -> str:
+    return str(int(x)) if float(x).is_integer() else fmt_number(x)
+
+
+def _interval(low: float | None, high: float | None, low_open: bool, high_open: bool) -> str:
+    if low is not None and high is not None:
+        return (
+            f"in {'(' if low_open else '['}{_bound(low)}, {_bound(high)}{')' if high_open else ']'}"
+        )
+    if low is not None:
+        return f"{'>' if low_open else '>='} {_bound(low)}"
+    assert high is not None
+    return f"{'<' if high_open else '<='} {_bound(high)}"
+
+
+def check_positive(value: Any, name: str) -> float:
+    """A finite number > 0 (a tolerance, a learning rate, a temperature)."""
+    return check_number(value, name, low=0.0, low_open=True)
+
+
+def check_fraction(value: Any, name: str) -> float:
+    """A number in [0, 1] (a probability, lambda, epsilon)."""
+    return check_number(value, name, low=0.0, high=1.0)
+
+
+def check_gamma(value: Any, default: float | None = None, name: str = "gamma") -> float:
+    """The discount rate: ``value`` checked to lie in [0, 1], or ``default`` if ``value`` is None.
+
+    Raises:
+        InvalidArgumentError: ``value`` is not a number in [0, 1], or both are None.
+    """
+    if value is None:
+        if default is None:
+            raise InvalidArgumentError(f"{name} must be given (a number in [0, 1])")
+        return float(default)
+    return check_fraction(value, name)
+
+
+def check_int(
+    value: Any, name: str, *, minimum: int | None = None, maximum: int | None = None
+) -> int:
+    """An integer (Python or NumPy; bools and floats refused) within optional bounds."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer):
+        raise InvalidArgumentError(
+            f"{name} must be an integer; got {type(value).__name__} {value!r}"
+        )
+    v = int(value)
+    if (minimum is not None and v < minimum) or (maximum is not None and v > maximum):
+        if maximum is None:
+            bound = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
+        elif minimum is None:
+            bound = f"an integer <= {maximum}"
+        else:
+            bound = f"an integer in [{minimum}, {maximum}]"
+        raise InvalidArgumentError(f"{name} must be {bound}; got {v}")
+    return v
+
+
+def check_count(value: Any, name: str, minimum: int = 1, maximum: int | None = None) -> int:
+    """A count: an integer >= ``minimum`` (episodes, steps, seeds, n, planning steps)."""
+    return check_int(value, name, minimum=minimum, maximum=maximum)
+
+
+def check_seed(value: Any, name: str = "seed") -> int | None:
+    """A seed: None (fresh entropy) or an integer in [0, 2**63 - 1].
+
+    A ``numpy.random.Generator`` is not a seed for this check; functions that accept
+    one test for it before calling this.
+    """
+    if value is None:
+        return None
+    v = check_int(value, name)
+    if not 0 <= v <= MAX_SEED:
+        raise InvalidArgumentError(f"{name} must be a non-negative integer below 2**63; got {v}")
+    return v
+
+
+def check_output_file(path: str | Path, name: str, suffixes: Iterable[str] | None = None) -> Path:
+    """A file path that can be written: checked before any work is done.
+
+    The parent folder must exist or be creatable, and be writable; the path must not be
+    a folder; its suffix, when ``suffixes`` is given, must be one of them.
+
+    Raises:
+        InvalidArgumentError: Naming the path and what is wrong with it.
+    """
+    p = Path(path)
+    if suffixes is not None:
+        allowed = sorted({s.lower() for s in suffixes})
+        if p.suffix.lower() not in allowed:
+            raise InvalidArgumentError(
+                f"{name} {str(p)!r} has suffix {p.suffix or '(none)'!r}; expected one of "
+                f"{', '.join(allowed)}"
+            )
+    if p.is_dir():
+        raise InvalidArgumentError(f"{name} {str(p)!r} is a folder; expected a file name")
+    _check_writable_parent(p.parent, name, p)
+    return p
+
+
+def check_output_dir(path: str | Path, name: str) -> Path:
+    """A folder that can be created or written into (it need not exist yet).
+
+    Raises:
+        InvalidArgumentError: The path is an existing file, or cannot be created or written.
+    """
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise InvalidArgumentError(f"{name} {str(p)!r} is an existing file; expected a folder")
+    _check_writable_parent(p if p.is_dir() else p.parent, name, p)
+    return p
+
+
+def _check_writable_parent(parent: Path, name: str, target: Path) -> None:
+    """The nearest existing ancestor of ``parent`` is a writable folder."""
+    anc = parent if str(parent) else Path(".")
+    while not anc.exists():
+        if anc.parent == anc:
+            break
+        anc = anc.parent
+    if not anc.is_dir():
+        raise InvalidArgumentError(f"{name} {str(target)!r}: {str(anc)!r} is not a folder")
+    try:  # access() says yes to root on read-only or virtual file systems: try for real
+        with tempfile.TemporaryFile(dir=anc, prefix=".policylab-write-check-"):
+            pass
+    except OSError as exc:
+        raise InvalidArgumentError(
+            f"{name} {str(target)!r} cannot be written: {str(anc)!r} is not writable "
+            f"({exc.strerror or exc})"
+        ) from None

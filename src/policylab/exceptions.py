@@ -46,3 +46,20 @@ class CheckpointError(PolicylabError, ValueError):
 
 class NotConvergedWarning(UserWarning):
     """An iterative method stopped at its iteration limit before converging."""
+
+
+class RunFolderError(PolicylabError, ValueError):
+    """A run folder cannot be used as asked: in use by another process, already holding
+    a run (without resume), holding none (with resume), or a different run."""
+
+
+class TrainingInterrupted(KeyboardInterrupt):
+    """Training stopped on Ctrl-C after saving a checkpoint at step :attr:`step`.
+
+    A ``KeyboardInterrupt``, so code that stops on Ctrl-C stops on it too.
+    """
+
+    def __init__(self, step: int, path: str) -> None:
+        super().__init__(f"interrupted at step {step:,}; the checkpoint is in {path}")
+        self.step = step
+        self.path = path

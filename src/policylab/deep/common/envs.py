@@ -58,15 +58,26 @@ def make_env(env_id: str, render_mode: str | None = None, **kwargs: Any) -> gym.
     return _make(env_id, render_mode=render_mode, **kwargs)
 
 
+def _missing_dependency(env_id: str, e: BaseException) -> InvalidArgumentError:
+    """The error for an env whose package is not installed, naming what to install."""
+    text = str(e).lower()
+    if "box2d" in text:
+        how = "Box2D, which is not installed: pip install 'policylab[box2d]'"
+    elif "mujoco" in text:
+        how = "MuJoCo, which is not installed: pip install 'gymnasium[mujoco]'"
+    else:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        how = f"a package that is not installed ({first})"
+    return InvalidArgumentError(f"Gymnasium environment {env_id!r} needs {how}")
+
+
 def _make(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
     try:
         return gym.make(env_id, **kwargs)
+    except (gym.error.DependencyNotInstalled, ImportError) as e:
+        raise _missing_dependency(env_id, e) from None
     except gym.error.Error as e:
         raise InvalidArgumentError(f"cannot make Gymnasium environment {env_id!r}: {e}") from None
-    except ImportError as e:
-        raise InvalidArgumentError(
-            f"Gymnasium environment {env_id!r} needs a package that is not installed: {e}"
-        ) from None
 
 
 def make_vec_env(env: EnvLike, n_envs: int = 1) -> VectorEnv:
@@ -92,10 +103,8 @@ def make_vec_env(env: EnvLike, n_envs: int = 1) -> VectorEnv:
             mode = "vector_entry_point" if spec.vector_entry_point is not None else "sync"
             try:
                 venv = gym.make_vec(env, num_envs=n_envs, vectorization_mode=mode)
-            except ImportError as e:
-                raise InvalidArgumentError(
-                    f"Gymnasium environment {env!r} needs a package that is not installed: {e}"
-                ) from None
+            except (gym.error.DependencyNotInstalled, ImportError) as e:
+                raise _missing_dependency(env, e) from None
     elif isinstance(env, gym.Env):
         if n_envs == 1:
             venv = gym.vector.SyncVectorEnv([lambda: env])

@@ -49,8 +49,11 @@ class NotConvergedWarning(UserWarning):
 
 
 class RunFolderError(PolicylabError, ValueError):
-    """A run folder cannot be used as asked: in use by another process, already holding
-    a run (without resume), holding none (with resume), or a different run."""
+    """A run folder cannot be used as asked.
+
+    It is in use by another process, already holds a run (without resume), holds none
+    (with resume), or holds a different run.
+    """
 
 
 class TrainingInterrupted(KeyboardInterrupt):

@@ -25,7 +25,7 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str,
 def test_train_eval_record_resume(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     run = tmp_path / "run"
     cfg = tmp_path / "cfg.toml"
-    cfg.write_text("n_envs = 2\nn_steps = 64\nn_epochs = 1\nhidden = [16, 16]\n")
+    cfg.write_text("n_envs = 2\nn_steps = 64\nn_epochs = 1\nhidden = [16, 16]\nanneal_lr = false\n")
     code, out, err = _run(
         ["train", "ppo", "CartPole-v1", "--steps", "256", "--seed", "1", "--config", str(cfg),
          "--out", str(run),

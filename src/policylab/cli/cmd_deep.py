@@ -219,6 +219,7 @@ def _train(
                 f"note: no tuned hyperparameters for {algo} on {env_id}; using generic defaults",
                 markup=False,
                 highlight=False,
+                soft_wrap=True,
             )
         file_fields = load_config_file(config) if config is not None else {}
         file_steps = file_fields.pop("steps", None)

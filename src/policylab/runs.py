@@ -162,6 +162,8 @@ class RunFolder:
             return
         if self.path.exists() and not self.path.is_dir():
             raise RunFolderError(f"run folder {str(self.path)!r} is an existing file")
+        if self.resume:  # said before anything is created; re-checked under the lock
+            self._check_new_or_resume()
         try:
             self.path.mkdir(parents=True, exist_ok=True)
         except OSError as e:

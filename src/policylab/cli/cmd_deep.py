@@ -160,6 +160,7 @@ def _train(
 
     from policylab.deep.common.agent import CHECKPOINT, RUN_MARKERS
     from policylab.deep.common.config import config_from_dict, load_config_file
+    from policylab.deep.common.envs import check_env_id
     from policylab.deep.common.evaluation import evaluate
     from policylab.deep.zoo import ALGORITHMS, default_config, has_tuned_settings
     from policylab.runs import RunFolder
@@ -213,6 +214,7 @@ def _train(
             _start_line(info, run, agent, total, resumed=True)
             agent.learn(total, progress=progress and not as_json, run_dir=run)
     else:
+        check_env_id(env_id)
         fields, tuned_steps = default_config(algo, env_id)
         if not has_tuned_settings(algo, env_id):
             err_console.print(

@@ -57,9 +57,10 @@ def record_gif(
         raise InvalidArgumentError("the agent has no env id to render")
     from PIL import Image
 
-    # rgb_array rendering needs no display or sound; without this, SDL (pygame) looks for
-    # an audio device and prints "XDG_RUNTIME_DIR is invalid" on a headless machine
-    os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+    # rgb_array frames need no window; on a machine without a display SDL (pygame) would
+    # probe for one and print "XDG_RUNTIME_DIR is invalid or not set" on stderr
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
     env = make_env(agent.env_id, render_mode="rgb_array")
     try:
         obs, _ = env.reset(seed=seed_)

@@ -18,6 +18,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from policylab.exceptions import InvalidArgumentError
 
 __all__ = [
+    "check_env_id",
     "env_id_of",
     "is_atari_id",
     "make_env",
@@ -80,6 +81,20 @@ def _make(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
         raise InvalidArgumentError(f"cannot make Gymnasium environment {env_id!r}: {e}") from None
 
 
+def check_env_id(env_id: str) -> Any:
+    """The Gymnasium spec of ``env_id`` (registering the Atari games for ``ALE/`` ids).
+
+    Raises:
+        InvalidArgumentError: If Gymnasium does not know the id.
+    """
+    if is_atari_id(env_id):
+        _register_ale()
+    try:
+        return gym.spec(env_id)
+    except gym.error.Error as e:
+        raise InvalidArgumentError(f"unknown Gymnasium environment {env_id!r}: {e}") from None
+
+
 def make_vec_env(env: EnvLike, n_envs: int = 1) -> VectorEnv:
     """A Gymnasium vector env of ``n_envs`` copies of ``env`` (an id, an env, or a vector env).
 
@@ -96,10 +111,7 @@ def make_vec_env(env: EnvLike, n_envs: int = 1) -> VectorEnv:
             _register_ale()
             venv = gym.vector.SyncVectorEnv([lambda: make_env(env) for _ in range(n_envs)])
         else:
-            try:
-                spec = gym.spec(env)
-            except gym.error.Error as e:
-                raise InvalidArgumentError(f"unknown Gymnasium environment {env!r}: {e}") from None
+            spec = check_env_id(env)
             mode = "vector_entry_point" if spec.vector_entry_point is not None else "sync"
             try:
                 venv = gym.make_vec(env, num_envs=n_envs, vectorization_mode=mode)

@@ -200,6 +200,10 @@ TUNED: dict[str, dict[str, dict[str, Any]]] = {
             batch_size=512,
             gradient_steps=32,
         ),
+        # A DQN checkpoint carries its replay buffer (about 3 GB for Atari's 100k frames):
+        # checkpoints every 250k steps instead of the generic 10k keep saving at a few
+        # percent of the run.
+        "atari": dict(checkpoint_every=250_000),
     },
 }
 

@@ -9,26 +9,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from cli_helpers import run_cli
 
-import policylab as pl
-from policylab.cli.main import main
+import policylab.deep as deep
 from policylab.deep.common.logging import RunLogger
 from policylab.exceptions import InvalidArgumentError, RunFolderError
 
-pytest.importorskip("torch")
-import policylab.deep as deep
-
 SMALL: dict[str, Any] = dict(n_envs=2, n_steps=32, n_epochs=1, batch_size=64, hidden=(8,))
-
-
-def _cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    try:
-        main(argv)
-        code = 0
-    except SystemExit as e:
-        code = int(e.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 class _Recorder:
@@ -123,14 +110,13 @@ def test_python_learn_refuses_a_foreign_run_and_too_few_steps(tmp_path: Path) ->
     with pytest.raises(InvalidArgumentError, match="below the"):
         agent.learn(10, run_dir=run)
     agent.learn(agent.num_timesteps + 64, run_dir=run)  # its own run: continues
-    assert pl is not None
 
 
 def test_resume_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     run = tmp_path / "run"
     base = ["train", "ppo", "CartPole-v1", "--out", str(run), "--no-progress"]
     tiny = ["--set", "n_envs=2", "--set", "n_steps=32", "--set", "hidden=[8]"]
-    code, _, err = _cli([*base, "--steps", "64", "--eval-episodes", "0", *tiny], capsys)
+    code, _, err = run_cli([*base, "--steps", "64", "--eval-episodes", "0", *tiny], capsys)
     assert code == 0, err
     cases = [
         (["train", "dqn", "CartPole-v1", "--out", str(run), "--resume"], "is a ppo run on"),
@@ -143,7 +129,7 @@ def test_resume_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
         ([*base, "--steps", "64"], "already holds a run; pass --resume"),
     ]
     for argv, words in cases:
-        code, _, err = _cli(argv, capsys)
+        code, _, err = run_cli(argv, capsys)
         assert code == 2, (argv, err)
         assert words in err and err.count("\n") == 1, (argv, err)
 
@@ -151,7 +137,7 @@ def test_resume_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
 def test_train_json_summary_and_generic_defaults_note(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    code, out, err = _cli(
+    code, out, err = run_cli(
         ["train", "ppo", "CartPole-v1", "--steps", "64", "--out", str(tmp_path / "r"), "--json",
          "--eval-episodes", "2", "--set", "n_envs=2", "--set", "n_steps=32"],
         capsys,
@@ -163,8 +149,8 @@ def test_train_json_summary_and_generic_defaults_note(
     assert doc["eval"]["mean"] == pytest.approx(sum(doc["eval"]["returns"]) / 2)
     assert "checkpoint every 10,000 steps" in err
 
-    code, out, err = _cli(["train", "ppo", "MountainCarContinuous-v0", "--dry-run"], capsys)
+    code, out, err = run_cli(["train", "ppo", "MountainCarContinuous-v0", "--dry-run"], capsys)
     assert code == 0, err
     assert "no tuned hyperparameters for ppo on MountainCarContinuous-v0; using generic" in err
-    code, out, err = _cli(["train", "ppo", "CartPole-v1", "--dry-run"], capsys)
+    code, out, err = run_cli(["train", "ppo", "CartPole-v1", "--dry-run"], capsys)
     assert code == 0 and "no tuned" not in err

@@ -16,24 +16,14 @@ import time
 from pathlib import Path
 
 import pytest
+from cli_helpers import run_cli
 
-from policylab.cli.main import main
 from policylab.deep.common.checkpoint import load_checkpoint
 
 TINY = [
     "--set", "n_envs=4", "--set", "n_steps=32", "--set", "n_epochs=1", "--set", "hidden=[8]",
     "--set", "batch_size=128", "--set", "anneal_lr=false", "--set", "log_interval=256",
 ]  # fmt: skip
-
-
-def _cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    try:
-        main(argv)
-        code = 0
-    except SystemExit as e:
-        code = int(e.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def _start(run: Path, *extra: str) -> subprocess.Popen[str]:
@@ -75,12 +65,12 @@ def test_ctrl_c_saves_exits_130_and_a_second_command_is_refused(
             lambda: len(_steps(run)[1]) >= 2 if (run / "progress.csv").exists() else False, proc
         )
         # a second command on the same folder, while the first one trains
-        code, _, err = _cli(
+        code, _, err = run_cli(
             ["train", "ppo", "CartPole-v1", "--out", str(run), "--resume", "--no-progress"], capsys
         )
         assert code == 2 and err.count("\n") == 1
         assert f"in use by process {proc.pid}" in err and "choose another folder" in err
-        code, _, err = _cli(["train", "ppo", "CartPole-v1", "--out", str(run)], capsys)
+        code, _, err = run_cli(["train", "ppo", "CartPole-v1", "--out", str(run)], capsys)
         assert code == 2 and "in use by process" in err
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=60)
@@ -97,7 +87,7 @@ def test_ctrl_c_saves_exits_130_and_a_second_command_is_refused(
     assert "checkpoint every 10,000 steps" in out
 
     # the same folder continues; the log stays one table with increasing steps
-    code, out, err = _cli(
+    code, out, err = run_cli(
         ["train", "ppo", "CartPole-v1", "--out", str(run), "--resume", "--steps",
          str(step + 512), "--no-progress", "--eval-episodes", "0"],
         capsys,
@@ -132,11 +122,11 @@ def test_kill_9_leaves_a_periodic_checkpoint_and_the_log_is_cut_back_on_resume(
     assert max(_steps(run)[1]) > ckpt  # the log ran ahead of the checkpoint
     (run / ".checkpoint.pt.k1ll3d.tmp").write_bytes(b"half a checkpoint")  # a killed write
 
-    code, out, err = _cli(["eval", str(run), "--episodes", "1", "--json"], capsys)
+    code, out, err = run_cli(["eval", str(run), "--episodes", "1", "--json"], capsys)
     assert code == 0, err
     assert len(json.loads(out)["returns"]) == 1
 
-    code, out, err = _cli(
+    code, out, err = run_cli(
         ["train", "ppo", "CartPole-v1", "--out", str(run), "--resume", "--steps",
          str(ckpt + 256), "--no-progress", "--eval-episodes", "0", "--json"],
         capsys,

@@ -350,7 +350,7 @@ class Agent(ABC):
                     self.target_steps,
                     start=self.num_timesteps,
                     enabled=progress,
-                    description=f"{self.algo} {self.env_id or ''}",
+                    description=self.algo,  # the env is on the start-up line: 80 columns
                 ) as bar,
             ):
                 if self._obs is None:

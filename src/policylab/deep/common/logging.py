@@ -139,16 +139,21 @@ class TrainingProgress:
         if enabled:
             self._progress = Progress(
                 TextColumn("[bold]{task.description}"),
-                BarColumn(),
-                TextColumn("{task.completed:,.0f}/{task.total:,.0f} steps"),
-                TextColumn("[cyan]{task.fields[sps]:>7,.0f} steps/s"),
+                BarColumn(bar_width=16),
+                TextColumn("{task.fields[steps]}"),
+                TextColumn("[cyan]{task.fields[rate]}"),
                 TextColumn("return [green]{task.fields[ret]}"),
                 TimeElapsedColumn(),
                 TimeRemainingColumn(),
                 console=console,
             )
             self._task = self._progress.add_task(
-                description, total=total, completed=start, sps=0.0, ret="-"
+                description,
+                total=total,
+                completed=start,
+                steps=_steps_text(start, total),
+                rate="",
+                ret="-",
             )
 
     def __enter__(self) -> TrainingProgress:
@@ -175,5 +180,22 @@ class TrainingProgress:
         if self._progress is not None and self._task is not None:
             ret = "-" if recent_return is None else f"{recent_return:.1f}"
             self._progress.update(
-                self._task, completed=steps, sps=self.steps_per_second(steps), ret=ret
+                self._task,
+                completed=steps,
+                steps=_steps_text(steps, self.total),
+                rate=f"{compact_count(self.steps_per_second(steps))}/s",
+                ret=ret,
             )
+
+
+def compact_count(n: float) -> str:
+    """A count in at most 6 characters: ``950``, ``12.3k``, ``1.25M``."""
+    if n < 10_000:
+        return f"{n:,.0f}"
+    if n < 999_500:
+        return f"{n / 1e3:.1f}k" if n < 99_950 else f"{n / 1e3:.0f}k"
+    return f"{n / 1e6:.2f}M" if n < 9.995e6 else f"{n / 1e6:.1f}M"
+
+
+def _steps_text(steps: int, total: int) -> str:
+    return f"{compact_count(steps)}/{compact_count(total)}"

@@ -48,7 +48,8 @@ def _wait_for(cond: object, proc: subprocess.Popen[str], timeout: float = 120.0)
 def _steps(run: Path) -> tuple[list[str], list[int]]:
     with (run / "progress.csv").open(newline="") as f:
         rows = list(csv.reader(f))
-    return rows[0], [int(r[0]) for r in rows[1:]]
+    # a row being appended by the live process may be cut short: skip what does not parse
+    return rows[0], [int(r[0]) for r in rows[1:] if len(r) == len(rows[0]) and r[0].isdigit()]
 
 
 def _checkpoint_step(run: Path) -> int:

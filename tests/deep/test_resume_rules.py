@@ -132,6 +132,12 @@ def test_resume_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
         code, _, err = run_cli(argv, capsys)
         assert code == 2, (argv, err)
         assert words in err and err.count("\n") == 1, (argv, err)
+    # without run.json (a folder from agent.save), the checkpoint names the run
+    (run / "run.json").unlink()
+    code, _, err = run_cli(["train", "dqn", "CartPole-v1", "--out", str(run), "--resume"], capsys)
+    assert code == 2 and "is a ppo run on CartPole-v1, not dqn" in err
+    code, _, err = run_cli(["train", "ppo", "Acrobot-v1", "--out", str(run), "--resume"], capsys)
+    assert code == 2 and "not ppo on Acrobot-v1" in err
 
 
 def test_train_json_summary_and_generic_defaults_note(

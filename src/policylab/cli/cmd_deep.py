@@ -162,6 +162,7 @@ def _train(
     from policylab.deep.common.config import config_from_dict, load_config_file
     from policylab.deep.common.envs import check_env_id
     from policylab.deep.common.evaluation import evaluate
+    from policylab.deep.io import resume as resume_run
     from policylab.deep.zoo import ALGORITHMS, default_config, has_tuned_settings
     from policylab.runs import RunFolder
 
@@ -191,13 +192,14 @@ def _train(
         _check_resume_overrides(overrides)
         run = RunFolder(run_dir, resume=True, markers=RUN_MARKERS, command=command)
         with run:
-            _check_same_run(run, algo, env_id)
+            _check_same_run(run, algo, env_id, run.info or {})
             if not run.file(CHECKPOINT).is_file():
                 raise RunFolderError(
                     f"{str(run_dir)!r} holds a run that stopped before its first checkpoint; "
                     "there is nothing to resume: remove the folder or choose another --out"
                 )
-            agent = cls.resume(run_dir)
+            agent = resume_run(run_dir)  # whatever its algorithm, to name it in a refusal
+            _check_same_run(run, algo, env_id, {"algo": agent.algo, "env_id": agent.env_id})
             if seed is not None and seed != agent.config.seed:
                 raise InvalidArgumentError(
                     f"--seed {seed} differs from the run's seed {agent.config.seed}; a resumed "
@@ -295,9 +297,11 @@ def _check_resume_overrides(overrides: dict[str, Any]) -> None:
         )
 
 
-def _check_same_run(run: RunFolder, algo: str, env_id: str) -> None:
-    doc = run.info or {}
+def _check_same_run(run: RunFolder, algo: str, env_id: str, doc: dict[str, Any]) -> None:
+    """Refuse to resume a run of another algorithm or env (named by run.json or the agent)."""
     was_algo, was_env = doc.get("algo"), doc.get("env_id")
+    if was_algo is None or was_env is None:  # no run.json: checked on the loaded agent
+        return
     if (was_algo, was_env) != (algo, env_id):
         raise RunFolderError(
             f"{str(run.path)!r} is a {was_algo} run on {was_env}, not {algo} on {env_id}; "

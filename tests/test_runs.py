@@ -104,7 +104,32 @@ def test_first_ctrl_c_sets_the_flag_second_raises(tmp_path: Path) -> None:
     with RunFolder(tmp_path / "run") as r, r.catch_interrupts():
         assert not r.interrupted
         os.kill(os.getpid(), signal.SIGINT)
-        assert r.interrupted
+        assert r.interrupted and r.signal == signal.SIGINT
         with pytest.raises(KeyboardInterrupt):
             os.kill(os.getpid(), signal.SIGINT)
     assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_sigterm_is_caught_like_ctrl_c_in_a_real_process(tmp_path: Path) -> None:
+    script = (
+        "import sys, time\n"
+        "from policylab.runs import RunFolder\n"
+        f"with RunFolder({str(tmp_path / 'run')!r}) as r, r.catch_interrupts():\n"
+        "    print('ready', flush=True)\n"
+        "    while not r.interrupted:\n"
+        "        time.sleep(0.01)\n"
+        "    print('saved after signal', r.signal, flush=True)\n"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == "ready"
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert out.strip() == f"saved after signal {int(signal.SIGTERM)}"
+    assert "stopping after this iteration to save a checkpoint" in err

@@ -57,12 +57,14 @@ class RunFolderError(PolicylabError, ValueError):
 
 
 class TrainingInterrupted(KeyboardInterrupt):
-    """Training stopped on Ctrl-C after saving a checkpoint at step :attr:`step`.
+    """Training stopped on Ctrl-C or SIGTERM after saving a checkpoint at step :attr:`step`.
 
-    A ``KeyboardInterrupt``, so code that stops on Ctrl-C stops on it too.
+    A ``KeyboardInterrupt``, so code that stops on Ctrl-C stops on it too. ``signal``
+    is the signal's number (2 for Ctrl-C's SIGINT, 15 for SIGTERM).
     """
 
-    def __init__(self, step: int, path: str) -> None:
+    def __init__(self, step: int, path: str, signal: int = 2) -> None:
         super().__init__(f"interrupted at step {step:,}; the checkpoint is in {path}")
         self.step = step
         self.path = path
+        self.signal = signal

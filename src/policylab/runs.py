@@ -21,12 +21,13 @@ that each command states them once by using it:
   file beside the target, fsync'ed and renamed over it), so a crash leaves the old file
   or the new one. Temporary files that a killed writer left behind (``.NAME.*.tmp``)
   are removed when the folder is opened, once the lock is held.
-- **Ctrl-C saves.** Inside ``with run.catch_interrupts():`` the first SIGINT only sets
+- **Ctrl-C saves.** Inside ``with run.catch_interrupts():`` the first SIGINT (or
+  SIGTERM, as sent by ``kill`` and batch schedulers) only sets
   :attr:`RunFolder.interrupted`; the training loop checks it between iterations, saves
   a checkpoint and raises :class:`~policylab.exceptions.TrainingInterrupted`, which the
   command line turns into "interrupted at step N; continue with --resume" and exit
-  code 130. A second Ctrl-C stops at once (``KeyboardInterrupt``), keeping the last
-  checkpoint.
+  code 130 (143 for SIGTERM). A second signal stops at once (``KeyboardInterrupt``),
+  keeping the last checkpoint.
 
 Example:
     >>> with RunFolder("runs/ppo-CartPole-v1-s0", resume=False) as run:  # doctest: +SKIP
@@ -112,7 +113,8 @@ class RunFolder:
         info: The run's ``run.json`` when resuming (``{}`` if it has none), else None.
         stale_owner: The lock record of a dead process whose lock was taken over, or None.
         removed_temps: Stale temporary files removed on opening.
-        interrupted: Whether Ctrl-C was pressed inside :meth:`catch_interrupts`.
+        interrupted: Whether Ctrl-C (SIGINT) or SIGTERM came inside :meth:`catch_interrupts`.
+        signal: The number of that signal, or None.
 
     Raises:
         RunFolderError: On entering: the path is a file or cannot be written, another
@@ -136,6 +138,7 @@ class RunFolder:
         self.stale_owner: dict[str, Any] | None = None
         self.removed_temps: list[Path] = []
         self.interrupted = False
+        self.signal: int | None = None
         self._lock_fd: int | None = None
 
     # ------------------------------------------------------------ opening
@@ -282,33 +285,34 @@ class RunFolder:
     # ------------------------------------------------------------ Ctrl-C
     @contextlib.contextmanager
     def catch_interrupts(self) -> Iterator[RunFolder]:
-        """Within the block, the first Ctrl-C sets :attr:`interrupted` instead of raising.
+        """Within the block, the first SIGINT or SIGTERM sets :attr:`interrupted`.
 
         The caller polls :attr:`interrupted` at points where its state is whole (between
-        training iterations), saves, and stops. A second Ctrl-C raises
+        training iterations), saves, and stops. A second signal raises
         ``KeyboardInterrupt`` at once. Outside the main thread (where Python delivers
         no signals) the block changes nothing.
         """
         if threading.current_thread() is not threading.main_thread():
             yield self
             return
-        self.interrupted = False
+        self.interrupted, self.signal = False, None
 
         def handler(signum: int, frame: FrameType | None) -> None:
             if self.interrupted:
                 raise KeyboardInterrupt
-            self.interrupted = True
+            self.interrupted, self.signal = True, signum
             sys.stderr.write(
                 "\nstopping after this iteration to save a checkpoint "
                 "(Ctrl-C again to stop at once)\n"
             )
             sys.stderr.flush()
 
-        old = signal.signal(signal.SIGINT, handler)
+        old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
         try:
             yield self
         finally:
-            signal.signal(signal.SIGINT, old)
+            for s, h in old.items():
+                signal.signal(s, h)
 
 
 def _read_owner(fd: int) -> dict[str, Any]:

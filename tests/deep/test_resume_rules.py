@@ -13,7 +13,7 @@ from cli_helpers import run_cli
 
 import policylab.deep as deep
 from policylab.deep.common.logging import RunLogger
-from policylab.exceptions import InvalidArgumentError, RunFolderError
+from policylab.exceptions import InvalidArgumentError, RunFolderError, TrainingInterrupted
 
 SMALL: dict[str, Any] = dict(n_envs=2, n_steps=32, n_epochs=1, batch_size=64, hidden=(8,))
 
@@ -160,3 +160,22 @@ def test_train_json_summary_and_generic_defaults_note(
     assert "no tuned hyperparameters for ppo on MountainCarContinuous-v0; using generic" in err
     code, out, err = run_cli(["train", "ppo", "CartPole-v1", "--dry-run"], capsys)
     assert code == 0 and "no tuned" not in err
+
+
+@pytest.mark.parametrize(("signum", "code"), [(2, 130), (15, 143)])
+def test_interrupted_training_exits_128_plus_the_signal(
+    signum: int,
+    code: int,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    def stopped(self: deep.Agent, *args: Any, **kwargs: Any) -> None:
+        raise TrainingInterrupted(1234, "run", signum)
+
+    monkeypatch.setattr(deep.Agent, "learn", stopped)
+    got, _, err = run_cli(
+        ["train", "ppo", "CartPole-v1", "--out", str(tmp_path / "r"), "--no-progress"], capsys
+    )
+    assert got == code
+    assert err.strip().splitlines()[-1] == "interrupted at step 1,234; continue with --resume"

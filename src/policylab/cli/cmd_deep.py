@@ -44,8 +44,9 @@ _TRAIN_HELP = (
     "The run folder (--out) gets run.json, progress.csv, TensorBoard events (tb/) and "
     "checkpoint.pt, which `policylab eval` and `policylab record` read and --resume continues. "
     "It belongs to one command at a time (a second one is refused). A checkpoint is saved "
-    "every checkpoint_every steps (10,000 by default), at the end, and on Ctrl-C, which "
-    "stops with exit code 130; progress.csv always matches the checkpoint.\n\n"
+    "every checkpoint_every steps (10,000 by default), at the end, and on Ctrl-C (or "
+    "SIGTERM), which stops with exit code 130 (143); progress.csv always matches the "
+    "checkpoint.\n\n"
     "A folder that holds a run is never reused: pass --resume to continue it, or a new --out. "
     "--resume continues the run as it was started: its algorithm, environment, seed and "
     "config are kept, and --config or --set are refused, except --set for "
@@ -133,7 +134,7 @@ def train_command(
         )  # fmt: skip
     except TrainingInterrupted as e:
         typer.echo(f"interrupted at step {e.step:,}; continue with --resume", err=True)
-        sys.exit(130)
+        sys.exit(128 + e.signal)  # 130 for Ctrl-C, 143 for SIGTERM (the shells' convention)
     except KeyboardInterrupt:
         typer.echo(
             "interrupted; the last checkpoint saved (if any) is kept; continue with --resume",

@@ -269,7 +269,7 @@ class Agent(ABC):
         With a run folder, the folder belongs to this call (a lock: a second process is
         refused), ``run.json``, ``progress.csv`` and TensorBoard events (``tb/``) are
         written, and ``checkpoint.pt`` is saved every ``checkpoint_every`` steps, at the
-        end, and on Ctrl-C, which then raises
+        end, and on Ctrl-C or SIGTERM, which then raise
         :class:`~policylab.exceptions.TrainingInterrupted` after saving. A folder that
         already holds a run is refused unless it is this agent's own (it came from
         :meth:`resume` of that folder, or an earlier ``learn`` into it); the log is then
@@ -323,7 +323,7 @@ class Agent(ABC):
         if run is not None:
             self._run_path = run.path.resolve()
             if interrupted:
-                raise TrainingInterrupted(self.num_timesteps, str(run.path))
+                raise TrainingInterrupted(self.num_timesteps, str(run.path), run.signal or 2)
         return self
 
     def _learn(

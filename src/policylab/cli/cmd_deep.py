@@ -177,8 +177,8 @@ def _train(
         check_count(steps, "--steps")
     check_count(eval_episodes, "--eval-episodes", minimum=0)
     check_seed(seed, "--seed")
-    run_dir = out or Path("runs") / f"{algo}-{env_id.replace('/', '_')}-s{seed or 0}"
-    check_output_dir(run_dir, "--out")
+    if out is not None:
+        check_output_dir(out, "--out")
     info = err_console if as_json else console
     overrides = _parse_set(set_items)
     command = f"policylab train {algo} {env_id}"
@@ -191,6 +191,7 @@ def _train(
                 "with); start a new run with --out to train with other settings"
             )
         _check_resume_overrides(overrides)
+        run_dir = out or _default_run_dir(algo, env_id, seed or 0)
         run = RunFolder(run_dir, resume=True, markers=RUN_MARKERS, command=command)
         with run:
             _check_same_run(run, algo, env_id, run.info or {})
@@ -232,12 +233,15 @@ def _train(
             check_count(file_steps, f"steps in {str(config)!r}")
         fields.update(file_fields)
         fields.update(overrides)
-        fields["seed"] = seed or 0
+        if seed is not None:  # else the seed of --config or --set, or the default 0
+            fields["seed"] = seed
         total = steps or file_steps or tuned_steps or 100_000
         cfg = config_from_dict(cls.config_class, fields)
         if dry_run:
             _config_table(cls, cfg, f"{algo} on {env_id}: {total:,} steps", info)
             return
+        run_dir = out or _default_run_dir(algo, env_id, cfg.seed)
+        check_output_dir(run_dir, "--out")
         run = RunFolder(run_dir, resume=False, markers=RUN_MARKERS, command=command)
         if run.holds_run():  # said before any work; the lock re-checks it
             run.open()
@@ -287,6 +291,10 @@ def _train(
         )
     table.add_row("run folder", str(run_dir))
     console.print(table)
+
+
+def _default_run_dir(algo: str, env_id: str, seed: int) -> Path:
+    return Path("runs") / f"{algo}-{env_id.replace('/', '_')}-s{seed}"
 
 
 def _check_resume_overrides(overrides: dict[str, Any]) -> None:

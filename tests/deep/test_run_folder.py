@@ -134,7 +134,7 @@ def test_kill_9_leaves_a_periodic_checkpoint_and_the_log_is_cut_back_on_resume(
     )  # fmt: skip
     assert code == 0, err
     assert f"took over the lock left by process {proc.pid}" in err
-    assert "removed 1 temporary file" in err
+    assert re.search(r"removed [12] temporary file", err)  # 2 if killed mid-save too
     assert not list(run.glob(".*.tmp"))
     doc = json.loads(out)
     assert doc["resumed_from"] == ckpt and doc["steps"] >= ckpt + 256

@@ -52,7 +52,8 @@ _TRAIN_HELP = (
     "config are kept, and --config or --set are refused, except --set for "
     f"{', '.join(RESUME_SETTABLE)}. --steps on resume extends the run "
     "(it counts all steps, so it cannot be below the steps taken); PPO's annealed learning "
-    "rate then continues from the value it had reached down to 0 at the new end.\n\n"
+    "rate then continues from the value it had reached down to 0 at the new end (a run "
+    "annealed to 0 is not extended).\n\n"
     "Config fields (a JSON or TOML table in --config, or --set FIELD=VALUE) are those of "
     "policylab.deep.PPOConfig / DQNConfig; --dry-run lists them with their values and meaning."
 )
@@ -88,7 +89,10 @@ def train_command(
     ] = None,
     seed: Annotated[
         int | None,
-        typer.Option("--seed", help="Seed of the whole run (weights, envs, exploration); 0."),
+        typer.Option(
+            "--seed",
+            help="Seed of the whole run: weights, envs, exploration (default: the config's, 0).",
+        ),
     ] = None,
     config: Annotated[
         Path | None,

@@ -46,3 +46,25 @@ class CheckpointError(PolicylabError, ValueError):
 
 class NotConvergedWarning(UserWarning):
     """An iterative method stopped at its iteration limit before converging."""
+
+
+class RunFolderError(PolicylabError, ValueError):
+    """A run folder cannot be used as asked.
+
+    It is in use by another process, already holds a run (without resume), holds none
+    (with resume), or holds a different run.
+    """
+
+
+class TrainingInterrupted(KeyboardInterrupt):
+    """Training stopped on Ctrl-C or SIGTERM after saving a checkpoint at step :attr:`step`.
+
+    A ``KeyboardInterrupt``, so code that stops on Ctrl-C stops on it too. ``signal``
+    is the signal's number (2 for Ctrl-C's SIGINT, 15 for SIGTERM).
+    """
+
+    def __init__(self, step: int, path: str, signal: int = 2) -> None:
+        super().__init__(f"interrupted at step {step:,}; the checkpoint is in {path}")
+        self.step = step
+        self.path = path
+        self.signal = signal

@@ -10,7 +10,7 @@ from policylab.deep.common.checkpoint import load_checkpoint
 from policylab.deep.common.envs import EnvLike
 from policylab.exceptions import CheckpointError
 
-__all__ = ["checkpoint_path", "load"]
+__all__ = ["checkpoint_path", "load", "resume"]
 
 
 def checkpoint_path(path: str | Path) -> Path:
@@ -30,13 +30,27 @@ def checkpoint_path(path: str | Path) -> Path:
     return p
 
 
-def load(path: str | Path, env: EnvLike | None = None) -> Agent:
-    """The agent saved at ``path`` (a checkpoint file or a run folder), whatever its algorithm."""
+def _agent_class(p: Path) -> type[Agent]:
     from policylab.deep.zoo import ALGORITHMS
 
-    p = checkpoint_path(path)
     meta: dict[str, Any] = load_checkpoint(p)[0]
     algo = meta.get("algo")
     if algo not in ALGORITHMS:
         raise CheckpointError(f"{str(p)!r} names an unknown algorithm {algo!r}")
-    return ALGORITHMS[algo].load(p, env=env)
+    return ALGORITHMS[algo]
+
+
+def load(path: str | Path, env: EnvLike | None = None) -> Agent:
+    """The agent saved at ``path`` (a checkpoint file or a run folder), whatever its algorithm."""
+    p = checkpoint_path(path)
+    return _agent_class(p).load(p, env=env)
+
+
+def resume(run_dir: str | Path, env: EnvLike | None = None) -> Agent:
+    """The agent of a run folder, whatever its algorithm, ready to continue the run.
+
+    Like :meth:`Agent.resume <policylab.deep.common.agent.Agent.resume>` of the run's own
+    algorithm: ``agent.learn(agent.target_steps, run_dir=run_dir)`` finishes the run.
+    """
+    p = checkpoint_path(run_dir)
+    return _agent_class(p).resume(p.parent, env=env)

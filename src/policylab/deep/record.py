@@ -1,17 +1,23 @@
-"""A GIF of one episode of an agent, from the environment's rgb_array frames."""
+"""An animation of one episode of an agent, from the environment's rgb_array frames."""
 
 from __future__ import annotations
 
+import io
+import os
 from pathlib import Path
 
 import numpy as np
 
 from policylab.deep.common.agent import Agent
-from policylab.deep.common.checkpoint import atomic_write_bytes
 from policylab.deep.common.envs import make_env
 from policylab.exceptions import InvalidArgumentError
+from policylab.runs import atomic_write_bytes
+from policylab.validation import check_count, check_output_file, check_seed
 
-__all__ = ["record_gif"]
+__all__ = ["ANIMATION_FORMATS", "record_gif"]
+
+ANIMATION_FORMATS = {".gif": "GIF", ".png": "PNG", ".webp": "WEBP"}
+"""File suffix -> image format of the animation (``.png`` is an animated PNG)."""
 
 
 def record_gif(
@@ -22,22 +28,42 @@ def record_gif(
     fps: int = 30,
     every: int = 1,
 ) -> tuple[float, int]:
-    """Play one greedy episode of ``agent`` on its env and write its frames as a GIF.
+    """Play one greedy episode of ``agent`` on its env and write its frames as an animation.
+
+    The format follows the suffix of ``path``: ``.gif`` (GIF), ``.png`` (animated PNG)
+    or ``.webp`` (animated WebP); the path is checked before the episode is played.
+
+    Args:
+        agent: A trained agent with an env id.
+        path: The file to write.
+        seed: Seed of the episode's reset.
+        max_steps: Stop the episode after this many steps.
+        fps: Frames per second of the animation.
+        every: Keep every k-th frame (smaller files).
 
     Returns:
         ``(episode return, number of frames written)``.
-    """
-    from PIL import Image
 
+    Raises:
+        InvalidArgumentError: On a path that cannot be written or has another suffix, on
+            counts below 1, or if the env renders no frames.
+    """
+    target = check_output_file(path, "the animation file", suffixes=ANIMATION_FORMATS)
+    seed_ = check_seed(seed)
+    max_steps = check_count(max_steps, "max_steps")
+    fps = check_count(fps, "fps")
+    every = check_count(every, "every")
     if agent.env_id is None:
         raise InvalidArgumentError("the agent has no env id to render")
-    if fps < 1 or every < 1 or max_steps < 1:
-        raise InvalidArgumentError(
-            f"fps, every and max_steps must be >= 1; got {fps}, {every}, {max_steps}"
-        )
+    from PIL import Image
+
+    # rgb_array frames need no window; on a machine without a display SDL (pygame) would
+    # probe for one and print "XDG_RUNTIME_DIR is invalid or not set" on stderr
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
     env = make_env(agent.env_id, render_mode="rgb_array")
     try:
-        obs, _ = env.reset(seed=seed)
+        obs, _ = env.reset(seed=seed_)
         frames = [env.render()]
         total = 0.0
         for _ in range(max_steps):
@@ -53,16 +79,14 @@ def record_gif(
     ]
     if not images:
         raise InvalidArgumentError(f"{agent.env_id!r} rendered no rgb_array frames")
-    import io
-
     buf = io.BytesIO()
     images[0].save(
         buf,
-        format="GIF",
+        format=ANIMATION_FORMATS[target.suffix.lower()],
         save_all=True,
         append_images=images[1:],
         duration=max(1, 1000 // fps),
         loop=0,
     )
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_write_bytes(target, buf.getvalue())
     return total, len(images)

@@ -16,7 +16,7 @@ from policylab.deep.dqn.agent import DQN
 from policylab.deep.ppo.agent import PPO
 from policylab.exceptions import InvalidArgumentError
 
-__all__ = ["ALGORITHMS", "TUNED", "ZOO", "default_config"]
+__all__ = ["ALGORITHMS", "TUNED", "ZOO", "default_config", "has_tuned_settings"]
 
 ALGORITHMS: dict[str, type[Agent]] = {"ppo": PPO, "dqn": DQN}
 
@@ -200,6 +200,10 @@ TUNED: dict[str, dict[str, dict[str, Any]]] = {
             batch_size=512,
             gradient_steps=32,
         ),
+        # A DQN checkpoint carries its replay buffer (about 3 GB for Atari's 100k frames):
+        # checkpoints every 250k steps instead of the generic 10k keep saving at a few
+        # percent of the run.
+        "atari": dict(checkpoint_every=250_000),
     },
 }
 
@@ -211,6 +215,12 @@ def _zoo_key(env_id: str) -> str:
 def zoo_settings(algo: str, env_id: str) -> dict[str, Any]:
     """The rl-baselines3-zoo settings of ``algo`` on ``env_id`` ({} if the zoo has none)."""
     return dict(ZOO.get(algo, {}).get(_zoo_key(env_id), {}))
+
+
+def has_tuned_settings(algo: str, env_id: str) -> bool:
+    """Whether ``algo`` has tuned settings for ``env_id`` (else the generic defaults apply)."""
+    key = _zoo_key(env_id)
+    return key in ZOO.get(algo, {}) or key in TUNED.get(algo, {})
 
 
 def default_config(algo: str, env_id: str) -> tuple[dict[str, Any], int | None]:

@@ -9,8 +9,8 @@ here once.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-import json
 import time
 from abc import ABC, abstractmethod
 from collections import deque
@@ -25,7 +25,6 @@ from gymnasium.vector import VectorEnv
 from numpy.typing import NDArray
 
 from policylab.deep.common.checkpoint import (
-    atomic_write_bytes,
     load_checkpoint,
     save_checkpoint,
     to_numpy_tree,
@@ -39,8 +38,11 @@ from policylab.deep.common.envs import (
     space_to_json,
 )
 from policylab.deep.common.logging import RunLogger, TrainingProgress
+from policylab.deep.common.networks import activation
 from policylab.deep.common.normalize import ObservationNormalizer
-from policylab.exceptions import CheckpointError, InvalidArgumentError
+from policylab.exceptions import CheckpointError, InvalidArgumentError, TrainingInterrupted
+from policylab.runs import RUN_JSON, RunFolder
+from policylab.validation import check_count
 
 __all__ = ["Agent", "BaseConfig", "Callback"]
 
@@ -50,7 +52,9 @@ Callback = Callable[["Agent", dict[str, float]], bool | None]
 returning False stops training."""
 
 CHECKPOINT = "checkpoint.pt"
-RUN_JSON = "run.json"
+PROGRESS_CSV = "progress.csv"
+RUN_MARKERS = (RUN_JSON, CHECKPOINT, PROGRESS_CSV)
+"""Files whose presence means a folder holds a deep-RL run."""
 
 
 @dataclasses.dataclass
@@ -71,7 +75,9 @@ class BaseConfig:
         1, "Torch CPU threads (1 is fastest for small networks); 0 keeps torch's."
     )
     checkpoint_every: int = option(
-        0, "With a run folder: save a checkpoint every this many steps (0: at the end only)."
+        10_000,
+        "With a run folder: save a checkpoint every this many steps (0: only at the end "
+        "and on Ctrl-C).",
     )
     log_interval: int = option(
         1000, "With a run folder: env steps between rows of progress.csv and TensorBoard points."
@@ -83,6 +89,7 @@ class BaseConfig:
         check(0.0 <= self.gamma <= 1.0, f"gamma must be in [0, 1]; got {self.gamma}")
         check(self.learning_rate > 0, f"learning_rate must be > 0; got {self.learning_rate}")
         check(all(h >= 1 for h in self.hidden), f"hidden sizes must be >= 1; got {self.hidden}")
+        activation(self.activation)  # raises on an unknown name
         check(self.max_grad_norm > 0, f"max_grad_norm must be > 0; got {self.max_grad_norm}")
         check(self.torch_threads >= 0, f"torch_threads must be >= 0; got {self.torch_threads}")
         check(self.log_interval >= 1, f"log_interval must be >= 1; got {self.log_interval}")
@@ -131,6 +138,8 @@ class Agent(ABC):
             else None
         )
         self._obs: NDArray[Any] | None = None
+        self._schedule_anchor: tuple[int, float] = (0, 1.0)
+        self._run_path: Path | None = None
         with self._threads():
             self._build()
 
@@ -219,10 +228,25 @@ class Agent(ABC):
 
     @property
     def progress_remaining(self) -> float:
-        """1 at the start of training, 0 at ``target_steps`` (for annealed schedules)."""
-        if self.target_steps <= 0:
+        """Fraction of the annealed schedules left: 1 at the start, 0 at ``target_steps``.
+
+        A fresh run goes linearly from 1 to 0 over its ``target_steps``. A run resumed to
+        the same target continues exactly where it stopped, so an interrupted and resumed
+        run anneals as an uninterrupted one. A run *extended* to a larger target (a second
+        ``learn`` with more steps, or ``policylab train --resume --steps MORE``) continues
+        from the fraction it had reached and goes linearly to 0 at the new target: an
+        annealed learning rate never jumps back up. (A run whose rate has already
+        reached 0 therefore cannot learn more by extension; train a new run instead.)
+        """
+        t0, p0 = self._schedule_anchor
+        total = self.target_steps
+        if total <= 0:
             return 1.0
-        return max(0.0, 1.0 - self.num_timesteps / self.target_steps)
+        if t0 == 0 and p0 == 1.0:
+            return max(0.0, 1.0 - self.num_timesteps / total)
+        if total <= t0:
+            return 0.0
+        return max(0.0, p0 * (total - self.num_timesteps) / (total - t0))
 
     def recent_mean_return(self) -> float | None:
         """Mean return of the last (up to) 100 training episodes, or None before the first."""
@@ -235,48 +259,106 @@ class Agent(ABC):
         callback: Callback | None = None,
         *,
         progress: bool = False,
-        run_dir: str | Path | None = None,
+        run_dir: str | Path | RunFolder | None = None,
     ) -> A:
         """Train until the agent has taken ``total_steps`` env steps in all.
 
         A fresh agent trains ``total_steps`` steps; a loaded or resumed agent continues
-        from its own step count, so annealed schedules end where they would have.
+        from its own step count (see :attr:`progress_remaining` for annealed schedules).
+
+        With a run folder, the folder belongs to this call (a lock: a second process is
+        refused), ``run.json``, ``progress.csv`` and TensorBoard events (``tb/``) are
+        written, and ``checkpoint.pt`` is saved every ``checkpoint_every`` steps, at the
+        end, and on Ctrl-C or SIGTERM, which then raise
+        :class:`~policylab.exceptions.TrainingInterrupted` after saving. A folder that
+        already holds a run is refused unless it is this agent's own (it came from
+        :meth:`resume` of that folder, or an earlier ``learn`` into it); the log is then
+        cut back to the checkpoint's step, so it always matches the checkpoint.
 
         Args:
-            total_steps: Env steps (summed over the parallel envs) to train up to.
+            total_steps: Env steps (summed over the parallel envs) to train up to,
+                counting those already taken.
             callback: Called after every iteration with ``(agent, metrics)``; returning
                 False stops training early.
             progress: Draw a rich progress bar with steps/s and the recent return.
-            run_dir: A folder for ``progress.csv``, TensorBoard events (``tb/``),
-                ``run.json`` and ``checkpoint.pt`` (saved every ``checkpoint_every``
-                steps and at the end, with everything :meth:`resume` needs).
+            run_dir: A run folder path, or an open :class:`~policylab.runs.RunFolder`.
 
         Returns:
             The agent itself.
+
+        Raises:
+            InvalidArgumentError: If ``total_steps`` is not an integer >= 1 or is below
+                the steps already taken.
+            RunFolderError: If the run folder is in use or holds another run.
+            TrainingInterrupted: On Ctrl-C with a run folder (after saving).
         """
-        if int(total_steps) != total_steps or total_steps < 1:
-            raise InvalidArgumentError(f"total_steps must be an integer >= 1; got {total_steps!r}")
-        self.target_steps = int(total_steps)
-        logger = RunLogger(run_dir) if run_dir is not None else None
-        if run_dir is not None:
-            self._write_run_json(Path(run_dir))
+        given: Any = total_steps
+        if isinstance(given, float) and given.is_integer():  # 1e5 is a count too
+            given = int(given)
+        total = check_count(given, "total_steps")
+        if total < self.num_timesteps:
+            raise InvalidArgumentError(
+                f"total_steps {total:,} is below the {self.num_timesteps:,} steps this agent "
+                "has already taken (total_steps counts every step of the run)"
+            )
+        run: RunFolder | None
+        if run_dir is None or isinstance(run_dir, RunFolder):
+            run = run_dir
+        else:
+            path = Path(run_dir)
+            run = RunFolder(
+                path,
+                resume=self._run_path is not None and self._run_path == path.resolve(),
+                markers=RUN_MARKERS,
+                command=f"{self.algo} on {self.env_id}",
+            )
+        own = run is not None and not run.is_open
+        if run is not None and own:
+            run.open()
+        try:
+            interrupted = self._learn(total, callback, progress, run)
+        finally:
+            if run is not None and own:
+                run.close()
+        if run is not None:
+            self._run_path = run.path.resolve()
+            if interrupted:
+                raise TrainingInterrupted(self.num_timesteps, str(run.path), run.signal or 2)
+        return self
+
+    def _learn(
+        self, total: int, callback: Callback | None, progress: bool, run: RunFolder | None
+    ) -> bool:
+        """The training loop of :meth:`learn`; returns whether Ctrl-C stopped it."""
+        if self.target_steps and total != self.target_steps and self.num_timesteps > 0:
+            self._schedule_anchor = (self.num_timesteps, self.progress_remaining)
+        self.target_steps = total
+        logger = None
+        if run is not None:
+            logger = RunLogger(run.path, resume_step=self.num_timesteps if run.resume else None)
+            self._write_run_json(run)
         every = self.config.checkpoint_every
         next_ckpt = (self.num_timesteps // every + 1) * every if every else None
         next_log = self.num_timesteps
         shown = 0.0
+        interrupted = False
         try:
             with (
                 self._threads(),
+                run.catch_interrupts() if run is not None else contextlib.nullcontext(),
                 TrainingProgress(
                     self.target_steps,
                     start=self.num_timesteps,
                     enabled=progress,
-                    description=f"{self.algo} {self.env_id or ''}",
+                    description=self.algo,  # the env is on the start-up line: 80 columns
                 ) as bar,
             ):
                 if self._obs is None:
                     self._reset_envs()
                 while self.num_timesteps < self.target_steps:
+                    if run is not None and run.interrupted:
+                        interrupted = True
+                        break
                     metrics = self._iteration()
                     metrics["episodes"] = float(self.episodes)
                     metrics["recent_return"] = self.recent_mean_return()  # type: ignore[assignment]
@@ -290,36 +372,39 @@ class Agent(ABC):
                         logger.log(self.num_timesteps, metrics)
                         next_log = self.num_timesteps + self.config.log_interval
                     if (
-                        run_dir is not None
+                        run is not None
                         and next_ckpt is not None
                         and self.num_timesteps >= next_ckpt
                     ):
-                        self.save(Path(run_dir) / CHECKPOINT, training_state=True)
+                        self.save(run.file(CHECKPOINT), training_state=True)
                         next_ckpt = (self.num_timesteps // every + 1) * every
                     if callback is not None and callback(self, metrics) is False:
                         break
+                if run is not None:  # inside the block: a Ctrl-C now waits for the save
+                    self.save(run.file(CHECKPOINT), training_state=True)
         finally:
             if logger is not None:
                 logger.close()
-        if run_dir is not None:
-            self.save(Path(run_dir) / CHECKPOINT, training_state=True)
-        return self
+        return interrupted
 
-    def _write_run_json(self, run_dir: Path) -> None:
+    def _write_run_json(self, run: RunFolder) -> None:
         doc = {
             "algo": self.algo, "env_id": self.env_id, "total_steps": self.target_steps,
             "config": _jsonable(dataclasses.asdict(self.config)),
         }  # fmt: skip
-        atomic_write_bytes(run_dir / RUN_JSON, (json.dumps(doc, indent=2) + "\n").encode())
+        run.write_json(RUN_JSON, doc)
 
     @classmethod
     def resume(cls: type[A], run_dir: str | Path, env: EnvLike | None = None) -> A:
         """The agent of a run folder, from its last checkpoint, ready to ``learn`` on.
 
-        ``agent.learn(agent.target_steps, run_dir=run_dir)`` finishes the run; episodes
-        in progress at the checkpoint are restarted.
+        ``agent.learn(agent.target_steps, run_dir=run_dir)`` finishes the run (the
+        folder's log is cut back to the checkpoint's step first); episodes in progress
+        at the checkpoint are restarted.
         """
-        return cls.load(Path(run_dir) / CHECKPOINT, env=env)
+        agent = cls.load(Path(run_dir) / CHECKPOINT, env=env)
+        agent._run_path = Path(run_dir).resolve()
+        return agent
 
     # ------------------------------------------------------------- acting
     def predict(self, obs: Any, deterministic: bool = True) -> NDArray[Any]:
@@ -374,6 +459,7 @@ class Agent(ABC):
             "episodes": self.episodes,
             "recent_returns": list(self.recent_returns),
             "rng_state": self.rng.bit_generator.state,
+            "schedule_anchor": list(self._schedule_anchor),
             "training_state": training_state,
         }
         tensors: dict[str, Any] = {"model": self._state_tensors(training_state)}
@@ -429,6 +515,8 @@ class Agent(ABC):
             agent.episodes = int(meta["episodes"])
             agent.recent_returns.extend(float(x) for x in meta["recent_returns"])
             agent.rng.bit_generator.state = meta["rng_state"]
+            t0, p0 = meta.get("schedule_anchor", (0, 1.0))
+            agent._schedule_anchor = (int(t0), float(p0))
         except (KeyError, RuntimeError, ValueError, TypeError) as e:
             raise CheckpointError(
                 f"{str(path)!r} does not fit a {cls.algo} agent: {type(e).__name__}: {e}"

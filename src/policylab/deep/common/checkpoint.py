@@ -18,7 +18,7 @@ import io
 import json
 import os
 import pickle
-import tempfile
+import warnings
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from policylab.exceptions import CheckpointError
+from policylab.runs import atomic_write_bytes
 
 __all__ = [
     "FORMAT",
@@ -39,39 +40,6 @@ __all__ = [
 
 FORMAT = "policylab-checkpoint"
 VERSION = 1
-
-
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` so that readers see the old file or the whole new one.
-
-    The bytes go to a temporary file beside ``path``, which is fsync'ed and renamed over
-    ``path``; the folder is fsync'ed too, so the rename survives a power loss.
-    """
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.fchmod(fd, 0o666 & ~umask)  # mkstemp makes 0600 files; keep the usual permissions
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    try:
-        dir_fd = os.open(p.parent, os.O_RDONLY)
-    except OSError:  # pragma: no cover - platforms without directory fds
-        return
-    try:
-        os.fsync(dir_fd)
-    except OSError:  # pragma: no cover
-        pass
-    finally:
-        os.close(dir_fd)
 
 
 def to_tensor_tree(x: Any) -> Any:
@@ -119,20 +87,22 @@ def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[
     p = Path(path)
     if not p.is_file():
         raise CheckpointError(f"no checkpoint file at {str(p)!r}")
+    foreign = f"{str(p)!r} is not a policylab checkpoint (corrupt or foreign)"
+    if not zipfile.is_zipfile(p):  # torch.save writes a zip archive; anything else is foreign
+        raise CheckpointError(foreign)
     try:
-        doc = torch.load(p, map_location="cpu", weights_only=True)
-    except pickle.UnpicklingError as e:
-        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        with warnings.catch_warnings():  # torch warns about legacy pickles in long paragraphs
+            warnings.simplefilter("ignore")
+            doc = torch.load(p, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError:
         raise CheckpointError(
-            f"refusing to load {str(p)!r}: it holds objects other than tensors and plain data "
-            f"({first}); only files written by policylab's save() are accepted"
+            f"refusing to load {str(p)!r}: it holds objects other than tensors and plain "
+            "data; only files written by policylab's save() are accepted"
         ) from None
-    except (RuntimeError, EOFError, zipfile.BadZipFile, OSError, ValueError) as e:
-        raise CheckpointError(
-            f"{str(p)!r} is not a readable checkpoint ({type(e).__name__}: {e})"
-        ) from None
+    except (RuntimeError, EOFError, zipfile.BadZipFile, OSError, ValueError, KeyError):
+        raise CheckpointError(foreign) from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise CheckpointError(f"{str(p)!r} is not a policylab checkpoint (format tag missing)")
+        raise CheckpointError(foreign)
     if doc.get("version") != VERSION:
         raise CheckpointError(
             f"{str(p)!r} has checkpoint version {doc.get('version')!r}; "

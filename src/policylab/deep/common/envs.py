@@ -18,6 +18,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from policylab.exceptions import InvalidArgumentError
 
 __all__ = [
+    "check_env_id",
     "env_id_of",
     "is_atari_id",
     "make_env",
@@ -58,15 +59,40 @@ def make_env(env_id: str, render_mode: str | None = None, **kwargs: Any) -> gym.
     return _make(env_id, render_mode=render_mode, **kwargs)
 
 
+def _missing_dependency(env_id: str, e: BaseException) -> InvalidArgumentError:
+    """The error for an env whose package is not installed, naming what to install."""
+    text = str(e).lower()
+    if "box2d" in text:
+        how = "Box2D, which is not installed: pip install 'policylab[box2d]'"
+    elif "mujoco" in text:
+        how = "MuJoCo, which is not installed: pip install 'gymnasium[mujoco]'"
+    else:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        how = f"a package that is not installed ({first})"
+    return InvalidArgumentError(f"Gymnasium environment {env_id!r} needs {how}")
+
+
 def _make(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
     try:
         return gym.make(env_id, **kwargs)
+    except (gym.error.DependencyNotInstalled, ImportError) as e:
+        raise _missing_dependency(env_id, e) from None
     except gym.error.Error as e:
         raise InvalidArgumentError(f"cannot make Gymnasium environment {env_id!r}: {e}") from None
-    except ImportError as e:
-        raise InvalidArgumentError(
-            f"Gymnasium environment {env_id!r} needs a package that is not installed: {e}"
-        ) from None
+
+
+def check_env_id(env_id: str) -> Any:
+    """The Gymnasium spec of ``env_id`` (registering the Atari games for ``ALE/`` ids).
+
+    Raises:
+        InvalidArgumentError: If Gymnasium does not know the id.
+    """
+    if is_atari_id(env_id):
+        _register_ale()
+    try:
+        return gym.spec(env_id)
+    except gym.error.Error as e:
+        raise InvalidArgumentError(f"unknown Gymnasium environment {env_id!r}: {e}") from None
 
 
 def make_vec_env(env: EnvLike, n_envs: int = 1) -> VectorEnv:
@@ -85,17 +111,12 @@ def make_vec_env(env: EnvLike, n_envs: int = 1) -> VectorEnv:
             _register_ale()
             venv = gym.vector.SyncVectorEnv([lambda: make_env(env) for _ in range(n_envs)])
         else:
-            try:
-                spec = gym.spec(env)
-            except gym.error.Error as e:
-                raise InvalidArgumentError(f"unknown Gymnasium environment {env!r}: {e}") from None
+            spec = check_env_id(env)
             mode = "vector_entry_point" if spec.vector_entry_point is not None else "sync"
             try:
                 venv = gym.make_vec(env, num_envs=n_envs, vectorization_mode=mode)
-            except ImportError as e:
-                raise InvalidArgumentError(
-                    f"Gymnasium environment {env!r} needs a package that is not installed: {e}"
-                ) from None
+            except (gym.error.DependencyNotInstalled, ImportError) as e:
+                raise _missing_dependency(env, e) from None
     elif isinstance(env, gym.Env):
         if n_envs == 1:
             venv = gym.vector.SyncVectorEnv([lambda: env])

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import csv
+import io
 import math
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -19,46 +21,77 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
+from policylab.runs import atomic_write_bytes
+
 __all__ = ["RunLogger", "TrainingProgress"]
 
 
 class RunLogger:
-    """Appends scalar metrics to ``progress.csv`` and TensorBoard event files in a run folder.
+    """Scalar metrics in ``progress.csv`` and TensorBoard event files of a run folder.
 
-    The CSV columns are those of the first row written (later keys are dropped from
-    the CSV but still go to TensorBoard); a resumed run appends to the same file.
+    ``progress.csv`` has one header line naming every column ever logged: when a row
+    brings a new metric (DQN's ``loss`` once learning starts, ``recent_return`` after
+    the first episode), the file is rewritten atomically with the new column, earlier
+    rows getting empty cells. A metric that is None is an empty cell.
 
     Args:
         run_dir: The run's folder (created if missing).
         tensorboard: Also write TensorBoard events under ``run_dir/tb``.
+        resume_step: Continue a run from its checkpoint at this env step: rows after it
+            (logged after the last checkpoint, before a crash or Ctrl-C) are cut from
+            the CSV and hidden from TensorBoard, so the log matches the checkpoint.
+            None starts a new log (an existing ``progress.csv`` is kept and appended to).
     """
 
-    def __init__(self, run_dir: str | Path, tensorboard: bool = True) -> None:
+    def __init__(
+        self, run_dir: str | Path, tensorboard: bool = True, resume_step: int | None = None
+    ) -> None:
         self.dir = Path(run_dir)
         self.dir.mkdir(parents=True, exist_ok=True)
         self.csv_path = self.dir / "progress.csv"
-        self._fields: list[str] | None = None
+        self._fields: list[str] = []
         if self.csv_path.exists():
-            with self.csv_path.open() as f:
-                header = f.readline().strip()
-            self._fields = header.split(",") if header else None
+            fields, rows = self._read()
+            if resume_step is not None:  # rewritten: also drops a line cut by a kill
+                kept = [r for r in rows if (k := _step_of(r)) is not None and k <= resume_step]
+                self._rewrite(fields, kept)
+            self._fields = fields
         self._tb: Any = None
         if tensorboard:
             from torch.utils.tensorboard import SummaryWriter
 
-            self._tb = SummaryWriter(str(self.dir / "tb"))
+            purge = None if resume_step is None else resume_step + 1
+            self._tb = SummaryWriter(str(self.dir / "tb"), purge_step=purge)
 
-    def log(self, step: int, metrics: dict[str, float]) -> None:
+    def _read(self) -> tuple[list[str], list[dict[str, str]]]:
+        with self.csv_path.open(newline="") as f:
+            reader = csv.DictReader(f)
+            rows = [r for r in reader if None not in r and None not in r.values()]
+            return list(reader.fieldnames or []), rows
+
+    def _rewrite(self, fields: list[str], rows: list[dict[str, Any]]) -> None:
+        buf = io.StringIO()
+        w = csv.DictWriter(buf, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+        atomic_write_bytes(self.csv_path, buf.getvalue().encode())
+
+    def log(self, step: int, metrics: Mapping[str, float | None]) -> None:
         """Write one row of metrics at env step ``step``."""
-        row = {"step": step, **{k: v for k, v in metrics.items() if v is not None}}
-        new = self._fields is None
-        if new:
-            self._fields = list(row)
-        with self.csv_path.open("a", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=self._fields or [], extrasaction="ignore")
-            if new:
-                w.writeheader()
-            w.writerow(row)
+        row: dict[str, Any] = {"step": step}
+        for k, v in metrics.items():
+            row[k] = "" if v is None else v
+        new = [k for k in row if k not in self._fields]
+        if new or not self.csv_path.exists():
+            rows: list[dict[str, Any]] = self._read()[1] if self.csv_path.exists() else []
+            self._fields = self._fields + new
+            self._rewrite(self._fields, [*rows, row])
+        else:
+            with self.csv_path.open("a", newline="") as f:
+                w = csv.DictWriter(
+                    f, fieldnames=self._fields, extrasaction="ignore", lineterminator="\n"
+                )
+                w.writerow(row)
         if self._tb is not None:
             for k, v in metrics.items():
                 if v is not None and not (isinstance(v, float) and math.isnan(v)):
@@ -69,6 +102,13 @@ class RunLogger:
         if self._tb is not None:
             self._tb.close()
             self._tb = None
+
+
+def _step_of(row: dict[str, str]) -> int | None:
+    try:
+        return int(float(row.get("step") or ""))
+    except ValueError:
+        return None
 
 
 class TrainingProgress:
@@ -99,16 +139,21 @@ class TrainingProgress:
         if enabled:
             self._progress = Progress(
                 TextColumn("[bold]{task.description}"),
-                BarColumn(),
-                TextColumn("{task.completed:,.0f}/{task.total:,.0f} steps"),
-                TextColumn("[cyan]{task.fields[sps]:>7,.0f} steps/s"),
+                BarColumn(bar_width=16),
+                TextColumn("{task.fields[steps]}"),
+                TextColumn("[cyan]{task.fields[rate]}"),
                 TextColumn("return [green]{task.fields[ret]}"),
                 TimeElapsedColumn(),
                 TimeRemainingColumn(),
                 console=console,
             )
             self._task = self._progress.add_task(
-                description, total=total, completed=start, sps=0.0, ret="-"
+                description,
+                total=total,
+                completed=start,
+                steps=_steps_text(start, total),
+                rate="",
+                ret="-",
             )
 
     def __enter__(self) -> TrainingProgress:
@@ -135,5 +180,22 @@ class TrainingProgress:
         if self._progress is not None and self._task is not None:
             ret = "-" if recent_return is None else f"{recent_return:.1f}"
             self._progress.update(
-                self._task, completed=steps, sps=self.steps_per_second(steps), ret=ret
+                self._task,
+                completed=steps,
+                steps=_steps_text(steps, self.total),
+                rate=f"{compact_count(self.steps_per_second(steps))}/s",
+                ret=ret,
             )
+
+
+def compact_count(n: float) -> str:
+    """A count in at most 6 characters: ``950``, ``12.3k``, ``1.25M``."""
+    if n < 10_000:
+        return f"{n:,.0f}"
+    if n < 999_500:
+        return f"{n / 1e3:.1f}k" if n < 99_950 else f"{n / 1e3:.0f}k"
+    return f"{n / 1e6:.2f}M" if n < 9.995e6 else f"{n / 1e6:.1f}M"
+
+
+def _steps_text(steps: int, total: int) -> str:
+    return f"{compact_count(steps)}/{compact_count(total)}"

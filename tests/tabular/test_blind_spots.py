@@ -13,7 +13,12 @@ import pytest
 import policylab as pl
 from policylab import tabular as tab
 from policylab.tabular import td_kernels as tdk
-from policylab.tabular.kernels import epsilon_greedy_action, epsilon_greedy_prob, rng_states
+from policylab.tabular.kernels import (
+    epsilon_greedy_action,
+    epsilon_greedy_prob,
+    greedy_action,
+    rng_states,
+)
 
 
 # ----------------------------------------------------------------------------- epsilon-greedy
@@ -241,3 +246,83 @@ def test_weighted_importance_sampling_v_is_exact_on_a_deterministic_problem():
     np.testing.assert_allclose(res.v, v_pi, rtol=0, atol=1e-12)
     ordinary = tab.mc_off_policy(mdp, pi, weighted=False, episodes=20_000, seed=6, checkpoints=2)
     np.testing.assert_allclose(ordinary.v, v_pi, atol=0.25)
+
+
+# ----------------------------------------------------------------------------- greedy choices
+@pytest.mark.parametrize(("q", "mask"), ROWS)
+def test_greedy_action_and_q_learning_max_range_over_available_actions_only(q, mask):
+    """argmax_{a in A(s)} Q(s, a) and R + gamma max_{a in A(s')} Q(s', a) (S&B eq. 6.8):
+    an unavailable action never wins, even with the largest entry of the row."""
+    q, mask = np.array(q), np.array(mask)
+    best = int(np.flatnonzero(mask & (q == q[mask].max()))[0])
+    assert greedy_action(q, mask) == best
+    qt, mt = q[None, :], mask[None, :]
+    assert tdk.q_learning_target(1.0, 0.5, qt, mt, 0, False) == 1.0 + 0.5 * q[mask].max()
+    assert tdk.q_learning_target(1.0, 0.5, qt, mt, 0, True) == 1.0
+
+
+def test_double_q_target_values_the_argmax_of_one_table_with_the_other():
+    """R + gamma Q2(S', argmax_a Q1(S', a)) (S&B eq. 6.10), argmax over A(S') only."""
+    q1 = np.array([0.0, 5.0, 1.0, 9.0])
+    q2 = np.array([7.0, -1.0, 3.0, 100.0])
+    mask = np.array([True, True, True, False])
+    assert tdk.double_q_target(0.5, 0.9, q1, q2, mask, False) == 0.5 + 0.9 * -1.0
+    assert tdk.double_q_target(0.5, 0.9, q2, q1, mask, False) == 0.5 + 0.9 * 0.0
+
+
+# ----------------------------------------------------------------------------- first visits
+def revisiting_start() -> pl.FiniteMDP:
+    """Two actions per state and revisits of the start state A (B may lead back to A)."""
+    return pl.FiniteMDP.from_dynamics(
+        {
+            "A": {"x": [(1.0, "A", 1.0)], "y": [(1.0, "B", 2.0)]},
+            "B": {"x": [(0.5, "A", -1.0), (0.5, "end", 0.0)], "y": [(1.0, "end", 3.0)]},
+        },
+        gamma=0.9,
+        terminal=("end",),
+    )
+
+
+def test_first_visit_v_of_the_start_state_is_the_mean_episode_return():
+    """Every episode starts in A, so A's first visit is t = 0 and first-visit MC with
+    sample averages gives V(A) = mean of G_0 over the episodes (S&B section 5.1);
+    every-visit MC, which also averages the returns of later visits, does not."""
+    mdp = revisiting_start()
+    kw = dict(episodes=300, seed=8, checkpoints=2, start="A")
+    fv = tab.mc_prediction(mdp, first_visit=True, **kw)
+    assert fv.truncated == 0
+    a = mdp.states.index("A")
+    assert fv.v[a] == pytest.approx(np.mean(fv.episode_returns), rel=1e-12)
+    ev = tab.mc_prediction(mdp, first_visit=False, **kw)
+    assert abs(ev.v[a] - np.mean(ev.episode_returns)) > 1e-3
+
+
+# ----------------------------------------------------------------------------- importance weights
+def two_step_choice() -> pl.FiniteMDP:
+    """s0 --go, 0--> s1; in s1 "good" pays 1 and "bad" pays 0, both end the episode."""
+    return pl.FiniteMDP.from_dynamics(
+        {
+            "s0": {"go": [(1.0, "s1", 0.0)]},
+            "s1": {"good": [(1.0, "end", 1.0)], "bad": [(1.0, "end", 0.0)]},
+        },
+        gamma=1.0,
+        terminal=("end",),
+    )
+
+
+def test_off_policy_monte_carlo_q_weighs_the_return_by_the_later_ratios():
+    """Ordinary IS for Q(s0, go): W = rho_1 = pi(A_1 | s1) / b(A_1 | s1), which is 2 when
+    A_1 = good (the target's action under a uniform b) and 0 otherwise, so
+    Q(s0, go) = (1/N) sum W G = 2 N_good / N; the same holds for off-policy control,
+    whose greedy target picks good (tied first, then strictly better)."""
+    mdp = two_step_choice()
+    s0, s1, good = mdp.states.index("s0"), mdp.states.index("s1"), mdp.actions.index("good")
+    go = mdp.actions.index("go")
+    n = 257
+    pi = pl.Policy.deterministic(mdp, {"s0": "go", "s1": "good"})
+    for target in (pi, None):
+        res = tab.mc_off_policy(mdp, target, episodes=n, seed=9, checkpoints=2, start="s0")
+        n_good = res.counts[s1, good]
+        assert 0 < n_good < n
+        assert res.q[s0, go] == pytest.approx(2.0 * n_good / n, rel=1e-12)
+        assert res.q[s1, good] == pytest.approx(1.0, rel=1e-12)

@@ -7,6 +7,7 @@ states visited twice in an episode, one action per state, importance sampling fo
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -326,3 +327,28 @@ def test_off_policy_monte_carlo_q_weighs_the_return_by_the_later_ratios():
         assert 0 < n_good < n
         assert res.q[s0, go] == pytest.approx(2.0 * n_good / n, rel=1e-12)
         assert res.q[s1, good] == pytest.approx(1.0, rel=1e-12)
+
+
+# ----------------------------------------------------------------------------- V(terminal) = 0
+class OneStep(gym.Env):
+    """A Gymnasium env with no model behind it: state 0, one action, then state 1, which
+    ends the episode with reward 1. The learner cannot know state 1 is terminal before
+    it sees ``terminated``, so its table holds the initial value there."""
+
+    observation_space = gym.spaces.Discrete(2)
+    action_space = gym.spaces.Discrete(1)
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        return 0, {}
+
+    def step(self, action):
+        return 1, 1.0, True, False, {}
+
+
+@pytest.mark.parametrize("learner", ["td0", "n_step_td", "td_lambda"])
+def test_a_terminated_step_does_not_bootstrap_from_the_table(learner):
+    """V(S) <- V(S) + alpha [R - V(S)] when S' is terminal (v(terminal) = 0, S&B eq. 6.2),
+    whatever the table holds for S': with alpha = 1, V(0) = R = 1 after one episode."""
+    res = getattr(tab, learner)(OneStep(), episodes=1, alpha=1.0, init=0.5, seed=0, checkpoints=1)
+    assert res.v[0] == 1.0

@@ -352,3 +352,32 @@ def test_a_terminated_step_does_not_bootstrap_from_the_table(learner):
     whatever the table holds for S': with alpha = 1, V(0) = R = 1 after one episode."""
     res = getattr(tab, learner)(OneStep(), episodes=1, alpha=1.0, init=0.5, seed=0, checkpoints=1)
     assert res.v[0] == 1.0
+
+
+def noisy_one_step_choice() -> pl.FiniteMDP:
+    """One decision: "good" pays 1 or 3 (even odds), "bad" pays 0; both end the episode."""
+    return pl.FiniteMDP.from_dynamics(
+        {
+            "s": {
+                "good": [(0.5, "end", 1.0), (0.5, "end", 3.0)],
+                "bad": [(1.0, "end", 0.0)],
+            }
+        },
+        gamma=1.0,
+        terminal=("end",),
+    )
+
+
+@pytest.mark.parametrize("weighted", [False, True])
+def test_off_policy_monte_carlo_v_with_random_returns_by_hand(weighted):
+    """Target pi(s) = good, uniform behaviour: rho = 2 on "good" episodes (G = 1 or 3) and
+    0 on "bad" ones (G = 0). Ordinary IS: V(s) = (1/N) sum rho G = 2 mean(G). Weighted
+    IS: V(s) = sum rho G / sum rho, the mean return of the "good" episodes."""
+    mdp = noisy_one_step_choice()
+    pi = pl.Policy.deterministic(mdp, {"s": "good"})
+    res = tab.mc_off_policy(mdp, pi, weighted=weighted, episodes=400, seed=12, checkpoints=2)
+    g = res.episode_returns
+    assert np.any(g == 1.0) and np.any(g == 3.0) and np.any(g == 0.0)
+    want = np.mean(g[g > 0]) if weighted else 2.0 * np.mean(g)
+    assert res.v[0] == pytest.approx(want, rel=1e-12)
+    assert res.q[0, mdp.actions.index("good")] == pytest.approx(np.mean(g[g > 0]), rel=1e-12)

@@ -2,9 +2,17 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 import torch
 
+from policylab.deep.common.checkpoint import (
+    FORMAT,
+    VERSION,
+    load_checkpoint,
+    save_checkpoint,
+)
 from policylab.deep.dqn.losses import q_learning_targets, td_loss
 from policylab.deep.ppo.losses import clipped_surrogate_loss
 
@@ -50,3 +58,20 @@ def test_clipped_objective_is_flat_outside_the_clip_range_in_the_direction_it_fa
     torch.testing.assert_close(loss, torch.tensor(-edge * adv))
     loss.backward()
     assert r.grad is not None and r.grad.item() == 0.0
+
+
+@pytest.mark.parametrize("version", [VERSION + 1, VERSION - 1, None])
+def test_checkpoint_of_another_format_version_is_refused(tmp_path: Path, version: object) -> None:
+    """A file in policylab's format but of another format version is not read as if it
+    were this one (its fields may mean something else): a clear CheckpointError."""
+    from policylab.exceptions import CheckpointError
+
+    good = tmp_path / "good.pt"
+    save_checkpoint(good, {"step": 3}, {"w": torch.ones(2)})
+    meta, tensors = load_checkpoint(good)
+    assert meta == {"step": 3}
+    torch.testing.assert_close(tensors["w"], torch.ones(2))
+    other = tmp_path / "other.pt"
+    torch.save({"format": FORMAT, "version": version, "meta": "{}", "tensors": {}}, other)
+    with pytest.raises(CheckpointError, match="checkpoint version"):
+        load_checkpoint(other)

@@ -24,7 +24,7 @@ bench: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[deep,dev,bench]'
 	$(PY) benchmarks/run.py $(BENCH)
 
-# Mutation testing of the equations (not part of `make test`; about an hour on 2 cores).
+# Mutation testing of the equations (not part of `make test`; 45 min on 2 loaded cores).
 mutate: $(STAMP)
 	$(PY) tools/mutate.py --out MUTATION.md
 

@@ -35,6 +35,7 @@ import json
 import os
 import platform
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -706,9 +707,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--list", action="store_true", help="list the mutants and exit")
     ap.add_argument("--out", default=str(ROOT / "MUTATION.md"), help="report file")
     ap.add_argument("--json", default=None, help="also write the raw results here")
+    ap.add_argument("--report", default=None, help="only write the report from these results")
+    ap.add_argument(
+        "--update",
+        default=None,
+        help="results (JSON of --json) of an earlier full run: the mutants run now replace "
+        "theirs, and the report is written from the merged results",
+    )
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per pytest run")
     args = ap.parse_args(argv)
 
+    if args.report:
+        done = json.loads(Path(args.report).read_text())
+        write_report(Path(args.out), done["results"], done["runs"])
+        return 0
     stale = check_mutants(ROOT)
     if args.list:
         for m in MUTANTS:
@@ -721,6 +733,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"unknown mutant ids: {sorted(unknown)}", file=sys.stderr)
         return 2
 
+    # A kill (SIGTERM) still runs the clean-up of the scratch folders.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     t_start = time.perf_counter()
     results: list[dict[str, object]] = []
     with tempfile.TemporaryDirectory(prefix="policylab-mutate-") as tmp:
@@ -764,10 +778,16 @@ def main(argv: list[str] | None = None) -> int:
                 f"{m.id} {verdict:10s} {killed_by or '-':4s} {total:5.0f} s  {m.what}", flush=True
             )
     wall = time.perf_counter() - t_start
+    runs = [{"mutants": len(results), "minutes": round(wall / 60, 1), "load": _load()}]
+    if args.update:
+        earlier = json.loads(Path(args.update).read_text())
+        now = {str(r["id"]): r for r in results}
+        results = [now.get(str(r["id"]), r) for r in earlier["results"]]
+        runs = [*earlier["runs"], *runs]
     if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=1))
-    if not args.only:
-        write_report(Path(args.out), results, wall)
+        Path(args.json).write_text(json.dumps({"results": results, "runs": runs}, indent=1))
+    if not args.only or args.update:
+        write_report(Path(args.out), results, runs)
     summary = score(results)
     print(
         f"score before the new tests {summary['before']}, after {summary['after']}; "
@@ -790,10 +810,16 @@ def score(results: list[dict[str, object]]) -> dict[str, str]:
     return {"before": pct(old), "after": pct(both), "n": str(n)}
 
 
-def write_report(path: Path, results: list[dict[str, object]], wall: float) -> None:
+def _load() -> str:
+    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
+    return ", ".join(f"{x:.1f}" for x in load)
+
+
+def write_report(
+    path: Path, results: list[dict[str, object]], runs: list[dict[str, object]]
+) -> None:
     """MUTATION.md: the score, the run time and load, every mutant, the survivors."""
     s = score(results)
-    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
     by_id = {m.id: m for m in MUTANTS}
     lines = [
         "# Mutation testing",
@@ -807,9 +833,20 @@ def write_report(path: Path, results: list[dict[str, object]], wall: float) -> N
         f"- Mutants: {len(results)} ({s['n']} counted; equivalent and stale ones left out)",
         f"- Killed by the tests that existed before this study: **{s['before']}**",
         f"- Killed with the new tests (`test_blind_spots.py` files): **{s['after']}**",
-        f"- Run time: {wall / 60:.1f} min on {os.cpu_count()} cores "
-        f"(load average at the end {load[0]:.1f}, {load[1]:.1f}, {load[2]:.1f}; "
-        f"Python {platform.python_version()})",
+        f"- Machine: {os.cpu_count()} cores, Python {platform.python_version()}, shared with"
+        " other jobs; run time (with the load average at the end of each run):",
+        *[f"  - {r['mutants']} mutants: {r['minutes']} min (load {r['load']})" for r in runs],
+        "",
+        '"Old" means the covering test files of the mutant\'s module that existed before',
+        'this study (listed per module in `tools/mutate.py`), not the whole suite; "new" the',
+        "`test_blind_spots.py` files, run only when the old tests let a mutant live.",
+    ]
+    if len(runs) > 1:
+        lines += [
+            "Runs after the first re-ran (`--only ... --update`) the mutants that had survived",
+            "it, with the tests written since; the other rows are the first run's.",
+        ]
+    lines += [
         "",
         "| id | file | wrong change | result | killed by | seconds |",
         "|---|---|---|---|---|---|",

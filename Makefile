@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench lint clean venv
+.PHONY: demo test bench lint clean venv mutate
 
 venv: $(STAMP)
 
@@ -24,9 +24,13 @@ bench: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[deep,dev,bench]'
 	$(PY) benchmarks/run.py $(BENCH)
 
+# Mutation testing of the equations (not part of `make test`; 45 min on 2 loaded cores).
+mutate: $(STAMP)
+	$(PY) tools/mutate.py --out MUTATION.md
+
 lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests benchmarks
-	$(VENV)/bin/ruff format --check src tests benchmarks
+	$(VENV)/bin/ruff check src tests benchmarks tools
+	$(VENV)/bin/ruff format --check src tests benchmarks tools
 	$(VENV)/bin/mypy
 
 clean:

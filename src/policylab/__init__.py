@@ -7,6 +7,8 @@ The public names of the core live here::
     pi = pl.Policy.deterministic(mdp, {"low": "recharge", "high": "search"})
 """
 
+# First: policylab's compiled kernels are cached in a folder keyed by their source.
+from policylab import _numba_cache as _numba_cache
 from policylab import problems
 from policylab.envs import Episode, MDPEnv, register_envs, rollout
 from policylab.exceptions import (

@@ -15,8 +15,9 @@ Blocks that run:
 - ```` ```python ````: executed as a script;
 - ```` ```pycon ````: an interactive session, checked like a doctest (``...`` matches
   anything, whitespace is normalised): every output the page shows is asserted;
-- ```` ```bash ```` preceded by the line ``<!-- test: run -->``: each command line is run
-  in a shell (``policylab`` is the command beside the running interpreter).
+- ```` ```bash ```` preceded by the line ``<!-- test: run -->``: each command line runs and
+  must exit 0 (a plain ``policylab ...`` line in this process, through the command's
+  own entry point; any other line in ``sh``, with the interpreter's folder on PATH).
 
 Other fences (``text``, ``toml``, ``bash`` without the marker) are shown only.
 """
@@ -30,6 +31,7 @@ import io
 import logging
 import os
 import re
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -116,18 +118,37 @@ def _run_pycon(block: Block, ns: dict[str, Any], where: str) -> None:
         raise BlockError(out.getvalue())
 
 
+def _policylab_in_process(argv: list[str]) -> tuple[int, str]:
+    """Run ``policylab ARGV`` in this process (no interpreter start-up); (exit code, output)."""
+    from policylab.cli.main import main
+
+    out = io.StringIO()
+    code: int | str | None = 0
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+        try:
+            main(argv)
+        except SystemExit as exc:
+            code = exc.code
+    return (code if isinstance(code, int) else 1), out.getvalue()
+
+
 def _run_shell(block: Block, env: dict[str, str], where: str) -> None:
+    """Run each command line; a plain ``policylab ...`` line runs in-process, others in sh."""
     for n, cmd in enumerate(block.code.splitlines()):
         cmd = cmd.split(" #", 1)[0].strip()
         if not cmd or cmd.startswith("#"):
             continue
-        proc = subprocess.run(
-            cmd, shell=True, env=env, capture_output=True, text=True, timeout=300, check=False
-        )
-        if proc.returncode != 0:
+        argv = shlex.split(cmd)
+        if argv[0] == "policylab" and not set(cmd) & set("|<>;&$`"):
+            code, output = _policylab_in_process(argv[1:])
+        else:
+            proc = subprocess.run(
+                cmd, shell=True, env=env, capture_output=True, text=True, timeout=300, check=False
+            )
+            code, output = proc.returncode, proc.stdout + proc.stderr
+        if code != 0:
             raise BlockError(
-                f"{where}:{block.line + n + 1}: `{cmd}` exited {proc.returncode}\n"
-                f"{proc.stdout[-2000:]}{proc.stderr[-2000:]}"
+                f"{where}:{block.line + n + 1}: `{cmd}` exited {code}\n{output[-3000:]}"
             )
 
 

@@ -70,6 +70,7 @@ class PageRun:
     blocks: int
     figures: dict[str, bytes]
     seconds: float
+    namespace: dict[str, Any] = dataclasses.field(default_factory=dict, repr=False)
 
 
 class BlockError(Exception):
@@ -118,7 +119,7 @@ def _run_pycon(block: Block, ns: dict[str, Any], where: str) -> None:
         raise BlockError(out.getvalue())
 
 
-def _policylab_in_process(argv: list[str]) -> tuple[int, str]:
+def run_policylab(argv: list[str]) -> tuple[int, str]:
     """Run ``policylab ARGV`` in this process (no interpreter start-up); (exit code, output)."""
     from policylab.cli.main import main
 
@@ -140,7 +141,7 @@ def _run_shell(block: Block, env: dict[str, str], where: str) -> None:
             continue
         argv = shlex.split(cmd)
         if argv[0] == "policylab" and not set(cmd) & set("|<>;&$`"):
-            code, output = _policylab_in_process(argv[1:])
+            code, output = run_policylab(argv[1:])
         else:
             proc = subprocess.run(
                 cmd, shell=True, env=env, capture_output=True, text=True, timeout=300, check=False
@@ -164,8 +165,22 @@ def run_markdown(
 ) -> PageRun:
     """Run the code blocks of one Markdown text in order, in one namespace.
 
+    See :func:`run_blocks` for the arguments (``text`` is the Markdown source).
+    """
+    return run_blocks(extract_blocks(text), where, workdir=workdir, replace=replace)
+
+
+def run_blocks(
+    blocks: list[Block],
+    where: str,
+    *,
+    workdir: Path | None = None,
+    replace: dict[str, str] | None = None,
+) -> PageRun:
+    """Run code blocks in order, in one namespace (blocks that do not run are skipped).
+
     Args:
-        text: The Markdown source.
+        blocks: The blocks, from :func:`extract_blocks`.
         where: A name for messages (the page's path).
         workdir: The folder the code runs in (a new temporary folder when None); the
             files the code writes under ``workdir/figures`` are returned.
@@ -174,7 +189,8 @@ def run_markdown(
             budgets); a key that no block contains is an error, so none goes stale.
 
     Returns:
-        The number of blocks run, the figures written, and the seconds taken.
+        The number of blocks run, the figures written, the seconds taken, and the
+        namespace the blocks ran in.
 
     Raises:
         BlockError: A block raised, a shown output differs, or a command failed.
@@ -182,7 +198,7 @@ def run_markdown(
     import matplotlib
 
     matplotlib.use("Agg")
-    blocks = [b for b in extract_blocks(text) if b.runs]
+    blocks = [b for b in blocks if b.runs]
     unused = set(replace or {})
     if replace:
         patched = []
@@ -217,8 +233,7 @@ def run_markdown(
                     raise
                 except BaseException as exc:
                     raise BlockError(
-                        f"{where}:{b.line}: the {b.lang} block raised "
-                        f"{type(exc).__name__}: {exc}"
+                        f"{where}:{b.line}: the {b.lang} block raised {type(exc).__name__}: {exc}"
                     ) from exc
                 finally:
                     import matplotlib.pyplot as plt
@@ -228,11 +243,15 @@ def run_markdown(
             os.chdir(old_cwd)
         figdir = workdir / "figures"
         figures = (
-            {p.relative_to(figdir).as_posix(): p.read_bytes() for p in figdir.rglob("*") if p.is_file()}
+            {
+                p.relative_to(figdir).as_posix(): p.read_bytes()
+                for p in figdir.rglob("*")
+                if p.is_file()
+            }
             if figdir.is_dir()
             else {}
         )
-    return PageRun(len(blocks), figures, time.perf_counter() - t0)
+    return PageRun(len(blocks), figures, time.perf_counter() - t0, ns)
 
 
 # --------------------------------------------------------------------------- MkDocs hook

@@ -299,8 +299,60 @@ _MATH = re.compile(
 )
 
 
+_ROLE = re.compile(
+    r":(?:py:)?(?:class|func|meth|mod|attr|data|obj|exc|const):<code>(?P<tilde>~?)(?P<name>[\w.]+)</code>"
+)
+
+
+def _canonical(path: str) -> str:
+    """Where an object is defined (``policylab.FiniteMDP`` -> ``policylab.mdp.finite.FiniteMDP``).
+
+    The API pages document each object under the package that exports it and register
+    its defining module's path too; a path that does not import is returned as it is.
+    """
+    import importlib
+
+    parts = path.split(".")
+    for i in range(len(parts) - 1, 0, -1):
+        try:
+            obj: Any = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        try:
+            for attr in parts[i:]:
+                obj = getattr(obj, attr)
+        except AttributeError:
+            return path
+        module, qualname = getattr(obj, "__module__", None), getattr(obj, "__qualname__", None)
+        if isinstance(module, str) and isinstance(qualname, str) and "<" not in qualname:
+            return f"{module}.{qualname}"
+        return path
+    return path
+
+
+def _cross_references(html: str, page: Any) -> str:
+    """Turn the Sphinx roles of docstrings (``:class:`~policylab.FiniteMDP```) into links.
+
+    Each becomes an optional mkdocs-autorefs reference: a link where the name is in the
+    API reference, plain code where it is not. A bare name on an API page is looked up in
+    that page's module.
+    """
+    module = None
+    parts = Path(page.file.src_uri).with_suffix("").parts
+    if parts[:2] == ("reference", "api") and len(parts) == 3 and parts[2] != "policylab":
+        module = f"policylab.{parts[2]}"
+
+    def link(m: re.Match[str]) -> str:
+        name = m.group("name").lstrip(".")
+        title = name.rsplit(".", 1)[-1] if m.group("tilde") else name
+        ident = name if "." in name or module is None else f"{module}.{name}"
+        return f'<autoref identifier="{_canonical(ident)}" optional><code>{title}</code></autoref>'
+
+    return _ROLE.sub(link, html)
+
+
 def on_page_content(html: str, page: Any, config: Any, files: Any) -> str:
-    """Turn the page's equations into MathML at build time (no script, no network)."""
+    """Link the docstrings' cross-references; turn equations into MathML (no script)."""
     import html as html_lib
 
     from latex2mathml.converter import convert
@@ -310,4 +362,4 @@ def on_page_content(html: str, page: Any, config: Any, files: Any) -> str:
         display = "block" if m.group("open") == "[" else "inline"
         return convert(tex, display=display)
 
-    return _MATH.sub(to_mathml, html)
+    return _MATH.sub(to_mathml, _cross_references(html, page))

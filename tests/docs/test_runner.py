@@ -113,3 +113,23 @@ def test_replacements_apply_and_a_stale_one_is_an_error() -> None:
     assert rp.run_markdown(page, "p.md", replace={"500_000": "5"}).namespace["n"] == 5
     with pytest.raises(rp.BlockError, match="no code block contains"):
         rp.run_markdown(page, "p.md", replace={"400_000": "5"})
+
+
+def test_docstring_roles_become_optional_references_to_where_objects_live() -> None:
+    assert rp._canonical("policylab.FiniteMDP") == "policylab.mdp.finite.FiniteMDP"
+    assert rp._canonical("policylab.no_such_name") == "policylab.no_such_name"
+
+    class Page:
+        class file:  # noqa: N801
+            src_uri = "reference/api/planning.md"
+
+    html = rp._cross_references(
+        "see :class:<code>~policylab.FiniteMDP</code> and :func:<code>value_iteration</code>",
+        Page,
+    )
+    assert html == (
+        'see <autoref identifier="policylab.mdp.finite.FiniteMDP" optional>'
+        "<code>FiniteMDP</code></autoref> and "
+        '<autoref identifier="policylab.planning.control.value_iteration" optional>'
+        "<code>value_iteration</code></autoref>"
+    )

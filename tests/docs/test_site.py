@@ -86,6 +86,17 @@ def test_equations_are_mathml_and_nothing_is_fetched_from_the_network(
         assert not remote, f"{html.relative_to(out)} loads {remote}"
 
 
+def test_docstring_cross_references_are_links_not_raw_roles(site: tuple[Path, str]) -> None:
+    out, _ = site
+    links = 0
+    for html in (out / "reference").rglob("*.html"):
+        text = html.read_text(encoding="utf-8")
+        raw = re.findall(r":(?:class|func|meth|mod|attr|data|obj|exc):<code>", text)
+        assert not raw, f"{html.relative_to(out)} shows raw roles {raw[:3]}"
+        links += text.count('class="autorefs autorefs-internal"')
+    assert links >= 50
+
+
 def test_api_reference_documents_the_public_names(site: tuple[Path, str]) -> None:
     out, _ = site
     api = out / "reference" / "api"

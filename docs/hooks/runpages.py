@@ -8,7 +8,8 @@ One module does both jobs, so that what the site shows is what the tests check:
   ``tutorials/returns.md`` that saves ``figures/loop.png`` shows it as
   ``![...](figures/loop.png)``). A block that raises, or a ``pycon`` block whose printed
   output differs from what the page claims, fails the build with the page and line;
-- the tests (``tests/docs``) call :func:`run_markdown` on the README and on single pages.
+- the tests (``tests/docs``) run the strict build, and call :func:`run_blocks` on each
+  Python block of the README.
 
 Blocks that run:
 

@@ -8,6 +8,7 @@ the README (so the list cannot go stale).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -129,3 +130,10 @@ def test_cheap_readme_command_runs(
         import json
 
         assert isinstance(json.loads(output), dict)
+
+
+def test_readme_links_to_the_documentation_pages() -> None:
+    targets = re.findall(r"\]\((docs/[^)]+\.md)\)", README)
+    assert "docs/index.md" in targets
+    for target in targets:
+        assert (ROOT / target).is_file(), f"the README links to {target}, which does not exist"

@@ -246,7 +246,7 @@ def _make_command(spec: Any) -> Callable[..., None]:
             bool,
             False,
             "--json",
-            help="Print one JSON object (design.md's contract) instead of tables.",
+            help="Print one JSON object (the documented JSON contract) instead of tables.",
         ),
         _opt(
             "plot",

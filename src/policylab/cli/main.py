@@ -74,9 +74,17 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def _click_exception_types() -> tuple[type[Exception], ...]:
-    """Click's usage-error base class: from click, or the copy newer typer versions bundle."""
-    try:
-        from click.exceptions import ClickException  # type: ignore[import-not-found,unused-ignore]
-    except ImportError:
-        from typer._click.exceptions import ClickException  # type: ignore[import-not-found,no-redef,unused-ignore]
-    return (ClickException,)
+    """Click's usage-error base classes: the copy newer typer versions bundle, and click's.
+
+    Both are checked: with such a typer, the usage errors come from its bundled copy even
+    when click itself is installed too (another package, such as mkdocs, may bring it).
+    """
+    import importlib
+
+    found: list[type[Exception]] = []
+    for module in ("typer._click.exceptions", "click.exceptions"):
+        try:
+            found.append(importlib.import_module(module).ClickException)
+        except ImportError:
+            continue
+    return tuple(found)

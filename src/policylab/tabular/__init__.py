@@ -1,4 +1,4 @@
-"""Learning from experience on tables: Monte Carlo (and, on branch ``td``, the TD family).
+"""Learning from experience on tables: Monte Carlo and the TD family.
 
 Public names::
 

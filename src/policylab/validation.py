@@ -23,6 +23,9 @@ from policylab.exceptions import InvalidArgumentError
 
 __all__ = [
     "MAX_SEED",
+    "Seed",
+    "as_generator",
+    "check_choice",
     "check_count",
     "check_fraction",
     "check_gamma",
@@ -32,28 +35,43 @@ __all__ = [
     "check_output_file",
     "check_positive",
     "check_seed",
+    "did_you_mean",
     "fmt_number",
     "normalize_name",
 ]
+
+Seed = int | np.random.Generator | None
+"""What every stochastic function takes: an int seed, a Generator, or None (fresh entropy)."""
 
 MAX_SEED = 2**63 - 1
 """Largest seed accepted (NumPy's ``SeedSequence`` takes any non-negative int; numba's
 RNG state and torch's ``manual_seed`` take 64-bit values)."""
 
 
-def fmt_number(x: Any) -> str:
+def fmt_number(x: Any, near: float | None = None) -> str:
     """A number as a user should read it in a message.
 
     Floats get the shortest form that round-trips (``repr`` of a Python float), so
     ``1 + 3e-8`` shows as ``1.00000003`` rather than ``1``; NumPy scalars are written
     like Python numbers (``-0.5``, not ``np.float64(-0.5)``); anything else uses ``repr``.
+
+    Args:
+        x: The number.
+        near: A value ``x`` is compared with (a sum that should be 1): then ``x`` gets
+            just enough significant digits (at least 6) to tell it from ``near``, so
+            ``0.93`` stays ``0.93`` and ``1.00000003`` keeps its last digit.
     """
     if isinstance(x, bool | np.bool_):
         return str(bool(x))
     if isinstance(x, int | np.integer):
         return str(int(x))
     if isinstance(x, float | np.floating):
-        return repr(float(x))
+        v = float(x)
+        if near is None or not math.isfinite(v) or v == near:
+            return repr(v)
+        rel = abs(v - near) / max(abs(v), abs(near))
+        digits = min(17, max(6, math.ceil(-math.log10(rel)) + 2)) if rel > 0 else 17
+        return f"{v:.{digits}g}"
     return repr(x)
 
 
@@ -64,6 +82,37 @@ def normalize_name(name: str) -> str:
     (problems, algorithms) looks names up through this one function.
     """
     return name.strip().lower().replace("_", "-")
+
+
+def did_you_mean(given: str, known: Iterable[str]) -> str:
+    """``"; did you mean 'x'?"`` for the closest of ``known`` to ``given``, or ``""``."""
+    import difflib
+
+    close = difflib.get_close_matches(given, list(known), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+def check_choice(value: Any, choices: Iterable[str], name: str) -> str:
+    """One of a fixed set of names, compared after :func:`normalize_name`.
+
+    Returns:
+        The matching entry of ``choices``.
+
+    Raises:
+        InvalidArgumentError: Listing the choices, with the closest one suggested.
+    """
+    known = list(choices)
+    if not isinstance(value, str):
+        raise InvalidArgumentError(
+            f"{name} must be one of {', '.join(known)}; got {type(value).__name__} {value!r}"
+        )
+    by_key = {normalize_name(c): c for c in known}
+    key = normalize_name(value)
+    if key in by_key:
+        return by_key[key]
+    raise InvalidArgumentError(
+        f"{name} must be one of {', '.join(known)}; got {value!r}{did_you_mean(key, by_key)}"
+    )
 
 
 def check_number(
@@ -185,6 +234,22 @@ def check_seed(value: Any, name: str = "seed") -> int | None:
     if not 0 <= v <= MAX_SEED:
         raise InvalidArgumentError(f"{name} must be a non-negative integer below 2**63; got {v}")
     return v
+
+
+def as_generator(seed: Any, name: str = "seed") -> np.random.Generator:
+    """The random generator of a stochastic function: a Generator as given, else a new one.
+
+    Args:
+        seed: A ``numpy.random.Generator`` (used as it is), an integer in [0, 2**63 - 1],
+            or None (fresh entropy).
+        name: The argument's name in messages.
+
+    Raises:
+        InvalidArgumentError: Anything else (a negative or float seed, a string).
+    """
+    if isinstance(seed, np.random.Generator):
+        return seed
+    return np.random.default_rng(check_seed(seed, name))
 
 
 def check_output_file(path: str | Path, name: str, suffixes: Iterable[str] | None = None) -> Path:

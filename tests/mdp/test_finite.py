@@ -8,7 +8,12 @@ import pytest
 import scipy.sparse as sp
 
 import policylab as pl
-from policylab.exceptions import InvalidMDPError, ShapeError, UnknownLabelError
+from policylab.exceptions import (
+    InvalidArgumentError,
+    InvalidMDPError,
+    ShapeError,
+    UnknownLabelError,
+)
 
 
 def robot_dynamics(alpha: float = 0.7, beta: float = 0.2) -> dict:
@@ -223,9 +228,10 @@ def test_terminal_state_with_outgoing_dynamics():
 
 @pytest.mark.parametrize("gamma", [-0.1, 1.5, float("nan"), "high"])
 def test_gamma_outside_unit_interval(gamma):
-    with pytest.raises(InvalidMDPError, match="gamma must be"):
+    # One check of gamma for every entry point: the same error type and words.
+    with pytest.raises(InvalidArgumentError, match="gamma must be"):
         pl.FiniteMDP.from_dynamics(robot_dynamics(), gamma=gamma)
-    with pytest.raises(InvalidMDPError, match="gamma must be"):
+    with pytest.raises(InvalidArgumentError, match="gamma must be"):
         pl.problems.recycling_robot().with_gamma(gamma)
 
 

@@ -17,7 +17,8 @@ import typer
 from rich.table import Table
 
 from policylab.cli.common import console, err_console, fmt_label, print_json
-from policylab.exceptions import InvalidArgumentError, UnknownProblemError
+from policylab.exceptions import InvalidArgumentError
+from policylab.validation import check_gamma, did_you_mean
 
 __all__ = ["register"]
 
@@ -42,33 +43,27 @@ def _resolve(name: str, gamma: float | None, use_env: bool) -> tuple[Any, Any]:
     Gymnasium id without ``P`` gives the env (the general path), with policylab's exact
     model where one is known (Blackjack-v1).
     """
-    import gymnasium as gym
     from gymnasium import spaces
 
-    from policylab.cli.common import load_problem
+    from policylab.cli.common import load_problem, make_gym_env
     from policylab.envs import MDPEnv
     from policylab.mdp.finite import FiniteMDP
-    from policylab.problems.registry import _REGISTRY, get_problem
+    from policylab.problems.registry import find_problem, get_problem
 
-    key = name.strip().lower().replace("_", "-")
-    if key in _REGISTRY:
-        mdp = get_problem(key)
+    gamma = check_gamma(gamma, 1.0) if gamma is not None else None
+    spec = find_problem(name)
+    if spec is not None:
+        mdp = spec.builder()
         mdp = mdp if gamma is None else mdp.with_gamma(gamma)
         return (MDPEnv(mdp) if use_env else mdp), mdp
     if name in KNOWN_MODELS:
         model = get_problem(KNOWN_MODELS[name])
         model = model if gamma is None else model.with_gamma(gamma)
-        env = gym.make(name, sab=True) if name == "Blackjack-v1" else gym.make(name)
+        env = make_gym_env(name, sab=True) if name == "Blackjack-v1" else make_gym_env(name)
         return env, model
     if "-v" not in name:
         return load_problem(name, gamma), None  # raises UnknownProblemError with the list
-    try:
-        env = gym.make(name)
-    except Exception as e:  # gymnasium raises its own error types for unknown ids
-        raise UnknownProblemError(
-            f"unknown problem {name!r} ({type(e).__name__}: {e}); known problems: "
-            f"{', '.join(sorted(_REGISTRY))}, or a Gymnasium id"
-        ) from None
+    env = make_gym_env(name)
     if getattr(env.unwrapped, "P", None) is not None:
         mdp = FiniteMDP.from_gymnasium(env, gamma=1.0 if gamma is None else gamma, name=name)
         return (env if use_env else mdp), mdp
@@ -84,16 +79,17 @@ def _resolve(name: str, gamma: float | None, use_env: bool) -> tuple[Any, Any]:
 def _named_policy(problem_name: str, mdp: Any, policy: str | None) -> Any:
     """A problem's registered policy by name, or the uniform policy (None / 'uniform')."""
     from policylab.mdp.policy import Policy
-    from policylab.problems.registry import _REGISTRY
+    from policylab.problems.registry import find_problem
 
     if policy is None or policy == "uniform":
         return None if mdp is None else Policy.uniform(mdp)
-    key = problem_name.strip().lower().replace("_", "-")
-    spec = _REGISTRY.get(key) or _REGISTRY.get(KNOWN_MODELS.get(problem_name, ""))
+    spec = find_problem(problem_name) or find_problem(KNOWN_MODELS.get(problem_name, ""))
     names = sorted(spec.policies) if spec else []
     if spec is None or policy not in spec.policies:
         raise InvalidArgumentError(
-            f"unknown policy {policy!r} for {problem_name!r}; known: uniform"
+            f"unknown policy {policy!r} for {problem_name!r}"
+            + did_you_mean(policy, ["uniform", *names])
+            + "; known: uniform"
             + (", " + ", ".join(names) if names else "")
         )
     return spec.policies[policy](mdp)

@@ -12,7 +12,8 @@ import typer
 from rich.table import Table
 
 from policylab.cli.common import console, fmt_label, load_problem, print_json
-from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
+from policylab.exceptions import InvalidPolicyError
+from policylab.validation import check_choice, did_you_mean
 
 if TYPE_CHECKING:
     from policylab.mdp.finite import FiniteMDP
@@ -169,19 +170,20 @@ def load_policy(mdp: FiniteMDP, problem: str, spec: str) -> Policy:
         InvalidPolicyError: Unknown name, unreadable file, or labels the MDP lacks.
     """
     from policylab.mdp.policy import Policy
-    from policylab.problems.registry import _REGISTRY
+    from policylab.problems.registry import find_problem
 
     if spec == "uniform":
         return Policy.uniform(mdp)
-    key = problem.strip().lower().replace("_", "-")
-    named = _REGISTRY[key].policies if key in _REGISTRY else {}
+    found = find_problem(problem)
+    named = found.policies if found is not None else {}
     if spec in named:
         return named[spec](mdp)
     path = Path(spec)
     if path.suffix != ".json":
         known = ", ".join(["uniform", *sorted(named)])
         raise InvalidPolicyError(
-            f"unknown policy {spec!r} for {problem!r}; known policies: {known}, or a FILE.json"
+            f"unknown policy {spec!r} for {problem!r}{did_you_mean(spec, ['uniform', *named])}; "
+            f"known policies: {known}, or a FILE.json"
         )
     try:
         table = json.loads(path.read_text())
@@ -221,9 +223,7 @@ def load_policy(mdp: FiniteMDP, problem: str, spec: str) -> Policy:
 
 def _choice(value: str, allowed: tuple[str, ...], option: str) -> str:
     """Check a choice option here, so that a bad value exits with code 2 and one line."""
-    if value not in allowed:
-        raise InvalidArgumentError(f"{option} must be one of {', '.join(allowed)}; got {value!r}")
-    return value
+    return check_choice(value, allowed, option)
 
 
 def _payload(mdp: FiniteMDP, v: np.ndarray, pi: Policy) -> dict[str, Any]:

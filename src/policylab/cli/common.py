@@ -11,8 +11,18 @@ from rich.table import Table
 
 from policylab.exceptions import UnknownProblemError
 from policylab.mdp.finite import FiniteMDP
+from policylab.problems.registry import find_problem, unknown_problem_message
+from policylab.validation import check_gamma
 
-__all__ = ["console", "err_console", "fmt_label", "load_problem", "print_json", "values_table"]
+__all__ = [
+    "console",
+    "err_console",
+    "fmt_label",
+    "load_problem",
+    "make_gym_env",
+    "print_json",
+    "values_table",
+]
 
 console = Console()
 err_console = Console(stderr=True)
@@ -23,34 +33,40 @@ def fmt_label(x: Any) -> str:
     return str(x)
 
 
+GYM_HINT = ", or a Gymnasium id with a model `P` (FrozenLake-v1, CliffWalking-v1, Taxi-v4)"
+
+
+def make_gym_env(name: str, **kwargs: Any) -> Any:
+    """``gymnasium.make(name)``, with Gymnasium's own errors turned into one policylab error.
+
+    Raises:
+        UnknownProblemError: An unknown id, or an env whose extra dependency is missing.
+    """
+    import gymnasium as gym
+
+    try:
+        return gym.make(name, **kwargs)
+    except Exception as e:  # gymnasium raises its own error types for unknown ids
+        detail = " ".join(str(e).split())
+        raise UnknownProblemError(
+            unknown_problem_message(name, GYM_HINT) + f" (Gymnasium: {detail})"
+        ) from None
+
+
 def load_problem(name: str, gamma: float | None = None) -> FiniteMDP:
     """A built-in problem by CLI name, or a Gymnasium id whose env exposes ``P``.
 
     Raises:
         UnknownProblemError: If neither a built-in problem nor a usable Gymnasium id.
     """
-    from policylab.problems.registry import _REGISTRY, get_problem
-
-    key = name.strip().lower().replace("_", "-")
-    if key in _REGISTRY:
-        mdp = get_problem(key)
+    gamma = check_gamma(gamma, 1.0) if gamma is not None else None
+    spec = find_problem(name)
+    if spec is not None:
+        mdp = spec.builder()
     elif "-v" in name:
-        import gymnasium as gym
-
-        try:
-            env = gym.make(name)
-        except Exception as e:  # gymnasium raises its own error types for unknown ids
-            raise UnknownProblemError(
-                f"unknown problem {name!r} ({type(e).__name__}: {e}); known problems: "
-                f"{', '.join(sorted(_REGISTRY))}, or a Gymnasium id with a model `P` "
-                "(FrozenLake-v1, CliffWalking-v1, Taxi-v4)"
-            ) from None
-        mdp = FiniteMDP.from_gymnasium(env, gamma=1.0, name=name)
+        mdp = FiniteMDP.from_gymnasium(make_gym_env(name), gamma=1.0, name=name)
     else:
-        raise UnknownProblemError(
-            f"unknown problem {name!r}; known problems: {', '.join(sorted(_REGISTRY))}, "
-            "or a Gymnasium id with a model `P` (FrozenLake-v1, CliffWalking-v1, Taxi-v4)"
-        )
+        raise UnknownProblemError(unknown_problem_message(name, GYM_HINT))
     return mdp if gamma is None else mdp.with_gamma(gamma)
 
 

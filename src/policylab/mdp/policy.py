@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from policylab.exceptions import InvalidPolicyError, UnknownLabelError
+from policylab.validation import fmt_number
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -47,7 +48,14 @@ class Policy:
             InvalidPolicyError: If the shape is wrong, a non-terminal row does not sum
                 to 1, or mass lies on an unavailable action.
         """
-        return cls(mdp, np.asarray(probs, dtype=np.float64))
+        try:
+            arr = np.asarray(probs, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidPolicyError(
+                f"policy array must be an (S, A) = ({mdp.n_states}, {mdp.n_actions}) array of "
+                f"numbers; got a {type(probs).__name__} that is not one"
+            ) from None
+        return cls(mdp, arr)
 
     @classmethod
     def deterministic(cls, mdp: FiniteMDP, mapping: Mapping[Hashable, Hashable]) -> Policy:
@@ -55,7 +63,17 @@ class Policy:
 
         Example: ``Policy.deterministic(robot, {"low": "recharge", "high": "search"})``.
         """
-        table = {s: {a: 1.0} for s, a in _as_mapping(mapping, "deterministic").items()}
+        table = {}
+        for s, a in _as_mapping(mapping, "deterministic").items():
+            try:
+                hash(a)
+            except TypeError:
+                raise InvalidPolicyError(
+                    f"a deterministic policy maps each state to one action label; state {s!r} "
+                    f"is given {a!r} ({type(a).__name__}); for several actions use "
+                    "Policy.stochastic with {state: {action: probability}}"
+                ) from None
+            table[s] = {a: 1.0}
         return cls.stochastic(mdp, table)
 
     @classmethod
@@ -100,7 +118,15 @@ class Policy:
     @classmethod
     def from_actions(cls, mdp: FiniteMDP, actions: ArrayLike) -> Policy:
         """A deterministic policy from one action index per state (ignored on terminals)."""
-        idx = np.asarray(actions, dtype=np.int64)
+        arr = np.asarray(actions)
+        if arr.dtype.kind not in "iu" and not (
+            arr.dtype.kind == "f" and np.all(np.isfinite(arr)) and np.all(arr == np.round(arr))
+        ):
+            raise InvalidPolicyError(
+                f"from_actions takes one action index (an integer) per state; got an array "
+                f"of dtype {arr.dtype}"
+            )
+        idx = arr.astype(np.int64)
         if idx.shape != (mdp.n_states,):
             raise InvalidPolicyError(
                 f"expected {mdp.n_states} action indices; got shape {idx.shape}"
@@ -123,6 +149,26 @@ class Policy:
         """Whether every non-terminal row puts all its mass on one action."""
         live = ~self.terminal
         return bool(np.all(np.isclose(self._probs[live].max(axis=1), 1.0)))
+
+    def check_fits(self, mdp: FiniteMDP, where: str = "policy") -> Policy:
+        """This policy, if it was built for ``mdp`` (same states, actions, A(s)).
+
+        Raises:
+            InvalidPolicyError: Naming both sizes and the first labels of each, so that a
+                policy of one problem passed with another is caught, not mis-indexed.
+        """
+        if self.states != mdp.states or self.actions != mdp.actions:
+            raise InvalidPolicyError(
+                f"{where} was built for another MDP ({len(self.states)} states, actions "
+                f"{list(self.actions)[:8]!r}); MDP {mdp.name!r} has {mdp.n_states} states and "
+                f"actions {list(mdp.actions)[:8]!r}"
+            )
+        if not np.array_equal(self.mask, mdp.action_mask):
+            raise InvalidPolicyError(
+                f"{where} was built for an MDP with other available actions A(s) than "
+                f"MDP {mdp.name!r}"
+            )
+        return self
 
     def action_indices(self) -> NDArray[np.int64]:
         """The most probable action index of each state (-1 for terminal states)."""
@@ -204,14 +250,14 @@ def _validated(mdp: FiniteMDP, probs: NDArray[np.float64]) -> NDArray[np.float64
     if not np.all(np.isfinite(p)) or np.any(p < 0):
         s, a = map(int, np.argwhere(~np.isfinite(p) | (p < 0))[0])
         raise InvalidPolicyError(
-            f"pi({mdp.actions[a]!r} | {mdp.states[s]!r}) = {p[s, a]!r}; probabilities must be "
-            "finite and >= 0"
+            f"pi({mdp.actions[a]!r} | {mdp.states[s]!r}) = {fmt_number(p[s, a])}; "
+            "probabilities must be finite and >= 0"
         )
     off = live[:, None] & ~mdp.action_mask & (p > POLICY_TOL)
     if np.any(off):
         s, a = map(int, np.argwhere(off)[0])
         raise InvalidPolicyError(
-            f"policy puts probability {p[s, a]:.6g} on action {mdp.actions[a]!r} in state "
+            f"policy puts probability {fmt_number(p[s, a])} on action {mdp.actions[a]!r} in state "
             f"{mdp.states[s]!r}, where it is not available; A({mdp.states[s]!r}) = "
             f"{mdp.available_actions(mdp.states[s])!r}"
         )
@@ -221,7 +267,8 @@ def _validated(mdp: FiniteMDP, probs: NDArray[np.float64]) -> NDArray[np.float64
     if np.any(bad):
         s = int(np.flatnonzero(bad)[0])
         raise InvalidPolicyError(
-            f"pi(. | {mdp.states[s]!r}) sums to {sums[s]:.6g}; each non-terminal row must sum to 1"
+            f"pi(. | {mdp.states[s]!r}) sums to {fmt_number(sums[s], near=1.0)}; each "
+            "non-terminal row must sum to 1"
         )
     p[live] /= sums[live, None]
     p.flags.writeable = False

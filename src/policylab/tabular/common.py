@@ -25,7 +25,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from policylab import validation
 from policylab.exceptions import InvalidArgumentError, UnknownLabelError
+from policylab.validation import check_count, check_fraction
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -50,38 +52,19 @@ __all__ = [
     "start_state",
 ]
 
-
-def check_count(value: Any, what: str, minimum: int = 1) -> int:
-    """An integer >= ``minimum`` (episodes, seeds, n, planning steps), or an error.
-
-    Raises:
-        InvalidArgumentError: Naming ``what``, the bound and the value given.
-    """
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        bound = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
-        raise InvalidArgumentError(f"{what} must be {bound}; got {value!r}")
-    return int(value)
+MAX_EPISODES = 2**62
+"""Most episodes (or steps per episode) one learner call accepts: the compiled kernels
+count in 64-bit integers."""
 
 
 def check_episodes(episodes: Any, what: str = "episodes") -> int:
     """A positive integer number of episodes, or an InvalidArgumentError."""
-    return check_count(episodes, what)
-
-
-def check_fraction(value: Any, what: str) -> float:
-    """A number in [0, 1] (gamma, lambda), or an InvalidArgumentError naming ``what``."""
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError(f"{what} must be a number in [0, 1]; got {value!r}") from None
-    if not 0.0 <= x <= 1.0:
-        raise InvalidArgumentError(f"{what} must be in [0, 1]; got {value!r}")
-    return x
+    return check_count(episodes, what, maximum=MAX_EPISODES)
 
 
 def check_gamma(gamma: Any, default: float) -> float:
     """Gamma in [0, 1] (None: the problem's own)."""
-    return float(default) if gamma is None else check_fraction(gamma, "gamma")
+    return validation.check_gamma(gamma, default)
 
 
 def checkpoint_episodes(episodes: int, checkpoints: int = 50) -> NDArray[np.int64]:
@@ -90,12 +73,7 @@ def checkpoint_episodes(episodes: int, checkpoints: int = 50) -> NDArray[np.int6
     About ``checkpoints`` of them, spaced evenly on a log scale from 1 to ``episodes``
     (always ending at ``episodes``).
     """
-    if (
-        isinstance(checkpoints, bool)
-        or not isinstance(checkpoints, (int, np.integer))
-        or checkpoints < 1
-    ):
-        raise InvalidArgumentError(f"checkpoints must be a positive integer; got {checkpoints!r}")
+    checkpoints = check_count(checkpoints, "checkpoints")
     pts = np.unique(np.geomspace(1, episodes, num=int(checkpoints)).round().astype(np.int64))
     pts = pts[(pts >= 1) & (pts <= episodes)]
     if len(pts) == 0 or pts[-1] != episodes:

@@ -22,11 +22,13 @@ import numpy as np
 from policylab.exceptions import InvalidArgumentError
 
 __all__ = [
+    "FIGURE_FORMATS",
     "MAX_SEED",
     "Seed",
     "as_generator",
     "check_choice",
     "check_count",
+    "check_figure_path",
     "check_fraction",
     "check_gamma",
     "check_int",
@@ -85,11 +87,11 @@ def normalize_name(name: str) -> str:
 
 
 def did_you_mean(given: str, known: Iterable[str]) -> str:
-    """``"; did you mean 'x'?"`` for the closest of ``known`` to ``given``, or ``""``."""
+    """``" (did you mean 'x'?)"`` for the closest of ``known`` to ``given``, or ``""``."""
     import difflib
 
     close = difflib.get_close_matches(given, list(known), n=1, cutoff=0.6)
-    return f"; did you mean {close[0]!r}?" if close else ""
+    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 def check_choice(value: Any, choices: Iterable[str], name: str) -> str:
@@ -207,14 +209,24 @@ def check_int(
         )
     v = int(value)
     if (minimum is not None and v < minimum) or (maximum is not None and v > maximum):
-        if maximum is None:
+        if maximum is None or (minimum is not None and v < minimum):
             bound = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
         elif minimum is None:
-            bound = f"an integer <= {maximum}"
+            bound = f"an integer <= {_int_text(maximum)}"
         else:
-            bound = f"an integer in [{minimum}, {maximum}]"
+            bound = f"an integer in [{minimum}, {_int_text(maximum)}]"
         raise InvalidArgumentError(f"{name} must be {bound}; got {v}")
     return v
+
+
+def _int_text(n: int) -> str:
+    """A bound as a user reads it: ``2**62`` rather than 4611686018427387904."""
+    for k in range(31, 64):
+        if n == 2**k:
+            return f"2**{k}"
+        if n == 2**k - 1:
+            return f"2**{k} - 1"
+    return str(n)
 
 
 def check_count(value: Any, name: str, minimum: int = 1, maximum: int | None = None) -> int:
@@ -275,6 +287,35 @@ def check_output_file(path: str | Path, name: str, suffixes: Iterable[str] | Non
     return p
 
 
+FIGURE_FORMATS = (".png", ".svg", ".pdf")
+"""File formats a figure can be saved in, by suffix (a path without one gets ``.png``)."""
+
+
+def check_figure_path(path: str | Path, name: str = "figure path") -> Path:
+    """Where a figure will be written, checked before the work that draws it.
+
+    A path without a suffix gets ``.png``; otherwise the suffix must be one of
+    :data:`FIGURE_FORMATS`; the file must be writable (see :func:`check_output_file`).
+
+    Returns:
+        The path the figure will have.
+
+    Raises:
+        InvalidArgumentError: Unknown suffix, a folder, or a place that cannot be written.
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise InvalidArgumentError(f"{name} {str(p)!r} is a folder; expected a file name")
+    if p.suffix == "":
+        p = p.with_suffix(".png")
+    elif p.suffix.lower() not in FIGURE_FORMATS:
+        raise InvalidArgumentError(
+            f"{name} {str(path)!r} ends in {p.suffix!r}; expected one of "
+            f"{', '.join(FIGURE_FORMATS)} (or no suffix for PNG)"
+        )
+    return check_output_file(p, name)
+
+
 def check_output_dir(path: str | Path, name: str) -> Path:
     """A folder that can be created or written into (it need not exist yet).
 
@@ -302,6 +343,6 @@ def _check_writable_parent(parent: Path, name: str, target: Path) -> None:
             pass
     except OSError as exc:
         raise InvalidArgumentError(
-            f"{name} {str(target)!r} cannot be written: {str(anc)!r} is not writable "
-            f"({exc.strerror or exc})"
+            f"{name} {str(target)!r} cannot be written: no file can be created in "
+            f"{str(anc)!r} ({exc.strerror or exc})"
         ) from None

@@ -18,7 +18,14 @@ from rich.table import Table
 
 from policylab.cli.common import console, err_console, fmt_label, print_json
 from policylab.exceptions import InvalidArgumentError
-from policylab.validation import check_gamma, did_you_mean
+from policylab.tabular.common import MAX_EPISODES
+from policylab.validation import (
+    check_count,
+    check_figure_path,
+    check_gamma,
+    check_seed,
+    did_you_mean,
+)
 
 __all__ = ["register"]
 
@@ -153,20 +160,29 @@ def _make_command(spec: Any) -> Callable[..., None]:
     def command(**kw: Any) -> None:
         from policylab.tabular.schedules import Schedule
 
+        # Every option is checked here, before any work: a bad value (or an output that
+        # cannot be written) is refused with its flag's name, not after learning.
         problem_name = kw.pop("problem")
         use_env = kw.pop("env")
-        problem, model = _resolve(problem_name, kw.pop("gamma"), use_env)
         json_out = kw.pop("json_out")
         plot = kw.pop("plot")
-        max_rows = kw.pop("max_rows")
+        plot = None if plot is None else check_figure_path(plot, "--plot")
+        max_rows = check_count(kw.pop("max_rows"), "--max-rows", minimum=0)
         episodes = kw.pop("episodes")
         args: dict[str, Any] = {
-            "episodes": spec.default_episodes if episodes is None else episodes,
-            "seed": kw.pop("seed"),
-            "checkpoints": kw.pop("checkpoints"),
-            "max_steps": kw.pop("max_steps"),
+            "episodes": check_count(
+                spec.default_episodes if episodes is None else episodes,
+                "--episodes",
+                maximum=MAX_EPISODES,
+            ),
+            "seed": check_seed(kw.pop("seed"), "--seed"),
+            "checkpoints": check_count(kw.pop("checkpoints"), "--checkpoints"),
+            "max_steps": check_count(kw.pop("max_steps"), "--max-steps", maximum=MAX_EPISODES),
             "progress": not json_out,
         }
+        gamma = kw.pop("gamma")
+        gamma = None if gamma is None else check_gamma(gamma, None, "--gamma")
+        problem, model = _resolve(problem_name, gamma, use_env)
         if model is not None and model is not problem:
             args["model"] = model
         if spec.kind == "prediction":
@@ -242,7 +258,8 @@ def _make_command(spec: Any) -> Callable[..., None]:
             bool,
             False,
             "--json",
-            help="Print one JSON object (design.md's contract) instead of tables.",
+            help="Print one JSON object (states, actions, q, v, policy, episodes, steps, "
+            "seconds, episode_returns, error) instead of tables.",
         ),
         _opt(
             "plot",

@@ -13,7 +13,14 @@ from rich.table import Table
 
 from policylab.cli.common import console, fmt_label, load_problem, print_json
 from policylab.exceptions import InvalidPolicyError
-from policylab.validation import check_choice, did_you_mean
+from policylab.validation import (
+    check_choice,
+    check_count,
+    check_figure_path,
+    check_gamma,
+    check_positive,
+    did_you_mean,
+)
 
 if TYPE_CHECKING:
     from policylab.mdp.finite import FiniteMDP
@@ -89,7 +96,8 @@ def solve_command(
         value_iteration,
     )
 
-    mdp = load_problem(problem, gamma)
+    plot, tol = _check_outputs(plot, max_rows), check_positive(tol, "--tol")
+    mdp = load_problem(problem, _check_gamma(gamma))
     m = _choice(method, tuple(METHOD_NAMES), "--method")
     with (
         console.status(f"solving {mdp.name} by {METHOD_NAMES[m]} ...", spinner="dots")
@@ -147,7 +155,8 @@ def evaluate_command(
     from policylab.planning import evaluate_policy
 
     how = _choice(method, ("exact", "iterative"), "--method")
-    mdp = load_problem(problem, gamma)
+    plot = _check_outputs(plot, max_rows)
+    mdp = load_problem(problem, _check_gamma(gamma))
     pi = load_policy(mdp, problem, policy)
     res = evaluate_policy(mdp, pi, method=how, return_result=True)
     if json_out:
@@ -219,6 +228,17 @@ def load_policy(mdp: FiniteMDP, problem: str, spec: str) -> Policy:
             out[actions[a_str]] = p
         mapping[states[s_str]] = out
     return Policy.stochastic(mdp, mapping)
+
+
+def _check_gamma(gamma: float | None) -> float | None:
+    """``--gamma`` checked (None: the problem's own)."""
+    return None if gamma is None else check_gamma(gamma, None, "--gamma")
+
+
+def _check_outputs(plot: Path | None, max_rows: int) -> Path | None:
+    """``--plot`` (the figure's path, writable, known suffix) and ``--max-rows``, before work."""
+    check_count(max_rows, "--max-rows", minimum=0)
+    return None if plot is None else check_figure_path(plot, "--plot")
 
 
 def _choice(value: str, allowed: tuple[str, ...], option: str) -> str:

@@ -8,6 +8,7 @@ import typer
 from rich.table import Table
 
 from policylab.cli.common import console, fmt_label, load_problem, print_json
+from policylab.validation import check_count
 
 
 def problems_command(
@@ -50,6 +51,7 @@ def show_command(
     json_out: Annotated[bool, typer.Option("--json", help="Print JSON instead of tables.")] = False,
 ) -> None:
     """Show a problem: states, actions, A(s), and its dynamics table p(s', r | s, a)."""
+    max_rows = check_count(max_rows, "--max-rows", minimum=0)
     mdp = load_problem(problem)
     if json_out:
         print_json(

@@ -17,6 +17,7 @@ from rich.panel import Panel
 from rich.progress import Progress
 
 from policylab.cli.common import console
+from policylab.validation import check_output_dir, check_seed
 
 __all__ = ["TourContext", "tour_command", "tour_section"]
 
@@ -87,6 +88,8 @@ def tour_command(
     seed: Annotated[int, typer.Option(help="Seed of every random part of the tour.")] = 0,
 ) -> None:
     """Walk through the notes' examples and print what they show (the `make demo` job)."""
+    out = check_output_dir(out, "--out")
+    seed = check_seed(seed, "--seed") or 0
     ctx = TourContext(console=console, out_dir=out, quick=quick, seed=seed)
     secs = sections()
     console.print(

@@ -17,6 +17,7 @@ from matplotlib.figure import Figure
 
 from policylab.exceptions import InvalidArgumentError, InvalidPolicyError, ShapeError
 from policylab.mdp.policy import Policy
+from policylab.validation import FIGURE_FORMATS, check_figure_path
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -36,7 +37,7 @@ __all__ = [
 ]
 
 #: File formats a figure can be saved in, by suffix.
-FORMATS = (".png", ".svg", ".pdf")
+FORMATS = FIGURE_FORMATS
 
 #: Colour of cells that hold no state (walls) and of unavailable actions.
 BLOCKED = "#4d4d4d"
@@ -58,15 +59,7 @@ def save_figure(fig: Figure, path: str | Path, *, dpi: int = 120) -> Path:
     Raises:
         InvalidArgumentError: If the suffix names another format.
     """
-    p = Path(path)
-    suffix = p.suffix.lower()
-    if suffix == "":
-        p = p.with_suffix(".png")
-    elif suffix not in FORMATS:
-        raise InvalidArgumentError(
-            f"figure path {str(path)!r} ends in {p.suffix!r}; expected one of {', '.join(FORMATS)} "
-            "(or no suffix for PNG)"
-        )
+    p = check_figure_path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(p, dpi=dpi, metadata=_metadata(p))
     return p

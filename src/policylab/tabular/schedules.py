@@ -169,7 +169,11 @@ class Schedule:
             return cls.inverse()
         kind, colon, rest = t.partition(":")
         if not colon:
-            kind, rest = "const", t
+            try:
+                value = float(t)
+            except ValueError:
+                raise InvalidArgumentError(f"cannot read schedule {text!r}; {forms}") from None
+            return cls.constant(value)
         arity = {
             "const": (1, 1, cls.constant),
             "constant": (1, 1, cls.constant),

@@ -147,8 +147,20 @@ def test_from_gymnasium_cliffwalking():
             exp = {}
             for p, nxt, r, _ in base.P[s][a]:
                 exp[(nxt, r)] = exp.get((nxt, r), 0.0) + p
-            got = {(n, r): p for p, n, r in mdp.outcomes(s, a)}
+            got = {(n, r): p for p, n, r in mdp.outcomes(s, mdp.actions[a])}
             assert got == pytest.approx(exp)
+
+
+def test_from_gymnasium_labels_toy_text_actions_as_gymnasium_documents_them():
+    lake = pl.FiniteMDP.from_gymnasium("FrozenLake-v1")
+    assert lake.actions == ("left", "down", "right", "up")
+    # index order is the env's: action 2 (right) from the start cell of the
+    # non-slippery lake moves to state 1
+    flat = pl.FiniteMDP.from_gymnasium(gym.make("FrozenLake-v1", is_slippery=False))
+    assert flat.outcomes(0, "right") == [(1.0, 1, 0.0)]
+    assert flat.outcomes(0, "down") == [(1.0, 4, 0.0)]
+    assert pl.FiniteMDP.from_gymnasium("CliffWalking-v1").actions == ("up", "right", "down", "left")
+    assert pl.FiniteMDP.from_gymnasium("Taxi-v4").actions[4:] == ("pickup", "dropoff")
 
 
 def test_from_gymnasium_taxi():

@@ -693,7 +693,10 @@ class FiniteMDP:
         reachable from the start is refused as inconsistent; states that cannot be reached
         (Taxi's "already delivered" states) are kept, and there a move into a terminal
         state ends the episode. The start distribution is read from
-        ``initial_state_distrib`` where the env has one (else uniform over S).
+        ``initial_state_distrib`` where the env has one (else uniform over S). Actions
+        keep the env's index order and are labelled with Gymnasium's documented names
+        where known (FrozenLake: left, down, right, up; CliffWalking: up, right, down,
+        left; Taxi: south, north, east, west, pickup, dropoff), else 0..A-1.
 
         Args:
             env: A Gymnasium environment, or an id string for ``gymnasium.make``.
@@ -779,14 +782,18 @@ class FiniteMDP:
         initial: Mapping[Hashable, float] | None = None
         if init_arr is not None:
             initial = {s: float(init_arr[s]) for s in order if init_arr[s] > 0}
-        ordered = {s: dynamics[s] for s in order}
-        from policylab.mdp.gym_grid import gym_grid_layout
+        from policylab.mdp.gym_grid import gym_action_labels, gym_grid_layout
+
+        labels = gym_action_labels(base, A)
+        ordered = {
+            s: {labels[a]: outs for a, outs in dynamics[s].items()} for s in order
+        }
 
         return cls.from_dynamics(
             ordered,  # type: ignore[arg-type]
             gamma=gamma,
             terminal=sorted(terminal_set),
-            actions=list(range(A)),
+            actions=labels,
             initial=initial,
             name=name or str(env_id),
             grid=gym_grid_layout(base, S, A),

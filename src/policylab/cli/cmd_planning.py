@@ -11,7 +11,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from policylab.cli.common import console, fmt_label, load_problem, print_json
+from policylab.cli.common import console, emit_table, fmt_label, load_problem, print_json
 from policylab.exceptions import InvalidPolicyError
 from policylab.validation import (
     check_choice,
@@ -116,7 +116,7 @@ def solve_command(
         print_json({**_payload(mdp, res.v, res.policy), "iterations": int(res.iterations)})
     else:
         _print_summary(mdp, res)
-        console.print(
+        emit_table(
             _solution_table(mdp, res.v, res.policy, f"v_* and pi_* of {mdp.name}", max_rows, res)
         )
     if plot is not None:
@@ -163,7 +163,7 @@ def evaluate_command(
         print_json(_payload(mdp, res.v, pi))
     else:
         _print_summary(mdp, res)
-        console.print(
+        emit_table(
             _solution_table(
                 mdp, res.v, pi, f"v_pi of policy {policy!r} on {mdp.name}", max_rows, res
             )

@@ -16,6 +16,7 @@ from policylab.validation import check_gamma
 
 __all__ = [
     "console",
+    "emit_table",
     "err_console",
     "fmt_label",
     "load_problem",
@@ -24,7 +25,8 @@ __all__ = [
     "values_table",
 ]
 
-console = Console()
+#: stdout for people; into a pipe long lines are not wrapped (so ``grep`` sees whole lines).
+console = Console(soft_wrap=not sys.stdout.isatty())
 err_console = Console(stderr=True)
 
 
@@ -68,6 +70,41 @@ def load_problem(name: str, gamma: float | None = None) -> FiniteMDP:
     else:
         raise UnknownProblemError(unknown_problem_message(name, GYM_HINT))
     return mdp if gamma is None else mdp.with_gamma(gamma)
+
+
+def emit_table(table: Table, out: Console | None = None) -> None:
+    """Print a table: boxed on a terminal, plain columns in a pipe or a file.
+
+    Into a pipe (``policylab problems | grep ...``) no cell is ever cut: each row is one
+    line of left-aligned columns separated by two spaces, the title on the first line.
+    On a terminal a column too narrow for a cell folds it onto more lines rather than
+    cutting it with an ellipsis.
+    """
+    out = out or console
+    if out.is_terminal:
+        for col in table.columns:
+            col.overflow = "fold"
+        out.print(table)
+        return
+    from rich.text import Text
+
+    def plain(x: Any) -> str:
+        if isinstance(x, Text):
+            return x.plain
+        return Text.from_markup(x).plain if isinstance(x, str) else str(x)
+
+    rows = [[plain(c.header) for c in table.columns]]
+    cells = [[plain(x) for x in c.cells] for c in table.columns]
+    rows += [list(r) for r in zip(*cells, strict=True)]
+    widths = [max(len(" ".join(r[i].split())) for r in rows) for i in range(len(rows[0]))]
+    lines = [plain(table.title)] if table.title else []
+    for r in rows:
+        cols = [" ".join(x.split()) for x in r]
+        lines.append("  ".join(x.ljust(w) for x, w in zip(cols, widths, strict=True)).rstrip())
+    if table.caption:
+        lines.append(plain(table.caption))
+    out.file.write("\n".join(lines) + "\n")
+    out.file.flush()
 
 
 def print_json(obj: Any) -> None:

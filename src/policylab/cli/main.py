@@ -87,7 +87,7 @@ def _flags_show_no_type() -> None:
     def display_type_rich(self: Any, ctx: Any) -> str | None:
         if self.is_flag:
             return None
-        return original(self, ctx)  # type: ignore[no-any-return]
+        return original(self, ctx)
 
     display_type_rich._policylab = True  # type: ignore[attr-defined]
     TyperOption.display_type_rich = display_type_rich  # type: ignore[method-assign]
@@ -128,8 +128,7 @@ def main(argv: list[str] | None = None) -> None:
         raise
     except MemoryError:
         typer.echo(
-            "policylab: error: not enough memory for this input (fewer episodes, steps or "
-            "states?)",
+            "policylab: error: not enough memory for this input (fewer episodes, steps or states?)",
             err=True,
         )
         sys.exit(2)

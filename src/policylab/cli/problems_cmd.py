@@ -7,7 +7,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from policylab.cli.common import console, fmt_label, load_problem, print_json
+from policylab.cli.common import console, emit_table, fmt_label, load_problem, print_json
 from policylab.validation import check_count
 
 
@@ -40,7 +40,7 @@ def problems_command(
     table.add_column("Gymnasium id", style="dim")
     for s in specs:
         table.add_row(s.name, s.description, ", ".join(sorted(s.policies)) or "-", s.gym_id)
-    console.print(table)
+    emit_table(table)
 
 
 def show_command(
@@ -94,7 +94,7 @@ def show_command(
             acts or "-",
             f"{mdp.initial[i]:.3g}",
         )
-    console.print(st)
+    emit_table(st)
     dt = Table(title="One-step dynamics p(s', r | s, a)")
     for col in ("s", "a", "s'", "r", "p(s', r | s, a)"):
         dt.add_column(col, justify="right" if col in ("r", "p(s', r | s, a)") else "left")
@@ -106,7 +106,7 @@ def show_command(
                     break
                 dt.add_row(fmt_label(s), fmt_label(a), fmt_label(n), f"{r:g}", f"{p:.4g}")
                 shown += 1
-    console.print(dt)
+    emit_table(dt)
     if mdp.n_outcomes > shown:
         console.print(f"[dim]... {mdp.n_outcomes - shown} more outcomes (raise --max-rows)[/]")
     rsa = mdp.expected_reward
@@ -121,7 +121,7 @@ def show_command(
             fmt_label(s),
             *[f"{rsa[i, j]:.4g}" if mdp.action_mask[i, j] else "-" for j in range(mdp.n_actions)],
         )
-    console.print(et)
+    emit_table(et)
     if mdp.grid is not None:
         console.print("[bold]Grid[/] (row 0 at the top):")
         for gr in range(mdp.grid.shape[0]):

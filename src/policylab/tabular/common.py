@@ -197,17 +197,26 @@ def progress_bar(enabled: bool, total: int, description: str) -> Iterator[Callab
         MofNCompleteColumn,
         Progress,
         TextColumn,
+        TimeElapsedColumn,
         TimeRemainingColumn,
     )
+    from rich.table import Column
 
+    # On a narrow terminal the description gives way (cut with an ellipsis) and the bar
+    # shrinks; the counts and the times keep their full width.
     with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
+        TextColumn(
+            "{task.description}",
+            table_column=Column(ratio=1, no_wrap=True, overflow="ellipsis", min_width=6),
+        ),
+        BarColumn(bar_width=None, table_column=Column(ratio=2)),
         MofNCompleteColumn(),
         TextColumn("episodes"),
+        TimeElapsedColumn(),
         TimeRemainingColumn(),
         console=Console(stderr=True),
         transient=True,
+        expand=True,
     ) as prog:
         task = prog.add_task(description, total=total)
         yield lambda n: prog.advance(task, n)

@@ -25,6 +25,7 @@ GLIE (greedy in the limit with infinite exploration).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -174,7 +175,7 @@ class Schedule:
             except ValueError:
                 raise InvalidArgumentError(f"cannot read schedule {text!r}; {forms}") from None
             return cls.constant(value)
-        arity = {
+        arity: dict[str, tuple[int, int, Callable[..., Schedule]]] = {
             "const": (1, 1, cls.constant),
             "constant": (1, 1, cls.constant),
             "inverse": (1, 3, cls.inverse),

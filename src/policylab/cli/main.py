@@ -100,9 +100,24 @@ def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 
 
-def _usage_message(e: Any) -> str:
-    """A usage error as one line: Click's message, then where to find the help."""
-    msg = _one_line(e.format_message())
+def _given(param: Any, argv: list[str]) -> str | None:
+    """The value the user wrote for an option (``--episodes nan`` -> ``nan``), if found."""
+    opts = [o for o in getattr(param, "opts", []) if o.startswith("-")]
+    for i, tok in enumerate(argv):
+        for o in opts:
+            if tok == o and i + 1 < len(argv):
+                return argv[i + 1]
+            if tok.startswith(o + "="):
+                return tok[len(o) + 1 :]
+    return None
+
+
+def _usage_message(e: Any, argv: list[str]) -> str:
+    """A usage error as one line: Click's message, the value given, where to find help."""
+    msg = _one_line(e.format_message()).rstrip(".")
+    given = _given(getattr(e, "param", None), argv)
+    if given is not None:
+        msg += f"; got {given!r}"
     ctx = getattr(e, "ctx", None)
     if ctx is not None:
         msg += f" (see '{ctx.command_path} --help')"
@@ -111,8 +126,9 @@ def _usage_message(e: Any) -> str:
 
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app; bad input exits 2 with one line on stderr."""
+    args = list(sys.argv[1:] if argv is None else argv)
     try:
-        app(args=argv, standalone_mode=False, prog_name="policylab")
+        app(args=args, standalone_mode=False, prog_name="policylab")
     except PolicylabError as e:
         typer.echo(f"policylab: error: {_one_line(str(e))}", err=True)
         sys.exit(2)
@@ -140,7 +156,7 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(2)
     except Exception as e:
         if isinstance(e, _click_exception_types()):
-            typer.echo(f"policylab: error: {_usage_message(e)}", err=True)
+            typer.echo(f"policylab: error: {_usage_message(e, args)}", err=True)
             sys.exit(int(getattr(e, "exit_code", 2)) or 2)
         if os.environ.get("POLICYLAB_DEBUG"):
             raise

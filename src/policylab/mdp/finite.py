@@ -785,9 +785,7 @@ class FiniteMDP:
         from policylab.mdp.gym_grid import gym_action_labels, gym_grid_layout
 
         labels = gym_action_labels(base, A)
-        ordered = {
-            s: {labels[a]: outs for a, outs in dynamics[s].items()} for s in order
-        }
+        ordered = {s: {labels[a]: outs for a, outs in dynamics[s].items()} for s in order}
 
         return cls.from_dynamics(
             ordered,  # type: ignore[arg-type]

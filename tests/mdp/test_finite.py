@@ -317,3 +317,74 @@ def test_grid_wind_needs_one_value_per_column():
     # the wind of the column the move starts in: right from (1, 1) lands one row up
     out = mdp.outcomes((1, 1), "right")
     assert [o[1] for o in out] == [(0, 2)]
+
+
+def _two_state_arrays():
+    P = np.array([[[0.5, 0.5], [0.0, 1.0]], [[1.0, 0.0], [0.2, 0.8]]])
+    R = np.array([[1.0, 0.0], [0.0, 2.0]])
+    return P, R
+
+
+def test_from_arrays_takes_an_object_array_of_sparse_matrices():
+    # pymdptoolbox's convention: P is a NumPy object array holding A sparse matrices.
+    P, R = _two_state_arrays()
+    obj = np.empty(2, dtype=object)
+    obj[0], obj[1] = sp.csr_matrix(P[0]), sp.csr_matrix(P[1])
+    a = pl.FiniteMDP.from_arrays(obj, R, gamma=0.9)
+    b = pl.FiniteMDP.from_arrays(P, R, gamma=0.9)
+    np.testing.assert_array_equal(a.transition_matrix.toarray(), b.transition_matrix.toarray())
+    np.testing.assert_array_equal(a.expected_reward, b.expected_reward)
+    # rewards as an object array of sparse (A, S, S) matrices too
+    robj = np.empty(2, dtype=object)
+    robj[0], robj[1] = sp.csr_matrix(np.full((2, 2), 3.0)), sp.csr_matrix(np.full((2, 2), -1.0))
+    c = pl.FiniteMDP.from_arrays(obj, robj, gamma=0.9)
+    np.testing.assert_allclose(c.expected_reward, [[3.0, -1.0], [3.0, -1.0]])
+
+
+def test_from_arrays_accepts_float32_stochastic_to_float32_precision():
+    # rows of ten float32 tenths sum to 1 + 1.5e-8 in float64: stochastic in float32
+    P = np.full((2, 10, 10), 0.1, dtype=np.float32)
+    assert abs(P.astype(np.float64).sum(axis=2)[0, 0] - 1.0) > pl.mdp.PROB_TOL
+    mdp = pl.FiniteMDP.from_arrays(P, np.zeros((10, 2)), gamma=0.9)
+    sums = mdp.transition_matrix.sum(axis=1)
+    np.testing.assert_allclose(sums, 1.0, rtol=0, atol=1e-15)  # normalised
+    # float64 keeps its tight tolerance; the message shows the deviation
+    P64 = np.full((1, 2, 2), 0.5)
+    P64[0, 0, 0] += 3e-8
+    with pytest.raises(InvalidMDPError) as err:
+        pl.FiniteMDP.from_arrays(P64, np.zeros((2, 1)))
+    msg = str(err.value)
+    assert "sums to 1.00000003 (off by +3e-08)" in msg and "tolerance 1e-08" in msg
+    # float32 off by more than its precision is refused, with enough digits
+    P32 = np.full((1, 2, 2), 0.5, dtype=np.float32)
+    P32[0, 1, 1] = 0.501
+    with pytest.raises(InvalidMDPError, match=r"s=1, a=0\) sums to 1\.001 \(off by \+0\.001\)"):
+        pl.FiniteMDP.from_arrays(P32, np.zeros((2, 1)))
+
+
+def test_messages_show_numbers_without_numpy_reprs():
+    P, R = _two_state_arrays()
+    P[1, 0, 0] = -0.5
+    with pytest.raises(InvalidMDPError) as err:
+        pl.FiniteMDP.from_arrays(P, R)
+    assert "probability -0.5;" in str(err.value) and "np.float64" not in str(err.value)
+    d = robot_dynamics()
+    d["low"]["search"] = [(0.2, "low", 4.0), (0.73, "high", -3.0)]
+    with pytest.raises(InvalidMDPError, match=r"sums to 0\.93 \(off by -0\.07\)"):
+        pl.FiniteMDP.from_dynamics(d)
+
+
+@pytest.mark.parametrize(
+    ("P", "R", "kwargs", "words"),
+    [
+        (np.array([[["a", "b"], ["c", "d"]]]), np.zeros((2, 1)), {}, "P must hold real numbers"),
+        ([[[1.0, 0.0], [0.0, 1.0]]], [["x"], ["y"]], {}, "R must hold real numbers"),
+        ([[[1.0, 0.0], [0.0]]], np.zeros((2, 1)), {}, "rows of different lengths"),
+        ([[[1.0, 0.0], [0.0, 1.0]]], np.zeros((2, 1)), {"terminal": ["s1"]}, "terminal must"),
+        ([[[1.0, 0.0], [0.0, 1.0]]], np.zeros((2, 1)), {"initial": ["a", "b"]}, "initial must"),
+        ([[[1.0, 0.0], [0.0, 1.0]]], np.zeros((2, 1)), {"gamma": "0.9"}, "gamma must be"),
+    ],
+)
+def test_from_arrays_bad_input_is_a_policylab_error(P, R, kwargs, words):
+    with pytest.raises(pl.exceptions.PolicylabError, match=words):
+        pl.FiniteMDP.from_arrays(P, R, **kwargs)

@@ -174,7 +174,10 @@ class Schedule:
                 value = float(t)
             except ValueError:
                 raise InvalidArgumentError(f"cannot read schedule {text!r}; {forms}") from None
-            return cls.constant(value)
+            try:
+                return cls.constant(value)
+            except InvalidArgumentError as e:
+                raise InvalidArgumentError(f"schedule {text!r}: {e}") from None
         arity: dict[str, tuple[int, int, Callable[..., Schedule]]] = {
             "const": (1, 1, cls.constant),
             "constant": (1, 1, cls.constant),

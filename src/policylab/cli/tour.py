@@ -14,9 +14,10 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 from rich.panel import Panel
-from rich.progress import Progress, ProgressColumn
+from rich.progress import Progress
 
 from policylab.cli.common import console
+from policylab.tabular.common import progress_columns
 from policylab.validation import check_output_dir, check_seed
 
 __all__ = ["TourContext", "tour_command", "tour_section"]
@@ -80,22 +81,6 @@ def _import_section_modules() -> None:
             importlib.import_module(f"policylab.cli.{info.name}")
 
 
-def progress_columns() -> tuple[ProgressColumn, ...]:
-    """The tour's progress columns: on a narrow terminal the title gives way, not the time."""
-    from rich.progress import BarColumn, TaskProgressColumn, TextColumn, TimeElapsedColumn
-    from rich.table import Column
-
-    return (
-        TextColumn(
-            "{task.description}",
-            table_column=Column(ratio=1, no_wrap=True, overflow="ellipsis", min_width=6),
-        ),
-        BarColumn(bar_width=None, table_column=Column(ratio=1)),
-        TaskProgressColumn(),
-        TimeElapsedColumn(),
-    )
-
-
 def tour_command(
     quick: Annotated[
         bool, typer.Option("--quick", help="A short version (about 10 seconds).")
@@ -114,7 +99,9 @@ def tour_command(
             f"{len(secs)} sections" + (" (quick mode)" if quick else ""),
         )
     )
-    with Progress(*progress_columns(), console=console, transient=True, expand=True) as progress:
+    with Progress(
+        *progress_columns(None), console=console, transient=True, expand=True
+    ) as progress:
         task = progress.add_task("tour", total=len(secs))
         for _, title, fn in secs:
             progress.update(task, description=title)

@@ -48,6 +48,7 @@ __all__ = [
     "env_name",
     "is_finite_mdp",
     "progress_bar",
+    "progress_columns",
     "run_seeds",
     "start_state",
 ]
@@ -185,6 +186,38 @@ class Recorder:
         }
 
 
+def progress_columns(unit: str | None = "episodes") -> tuple[Any, ...]:
+    """The columns of every policylab progress bar, made to fit a terminal of 80 columns.
+
+    On a narrow terminal the description gives way (cut with an ellipsis) and the bar
+    shrinks; the count (``n/total unit``, or a percentage when ``unit`` is None) and the
+    elapsed and remaining times keep their full width.
+    """
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.table import Column
+
+    count: tuple[Any, ...] = (
+        (MofNCompleteColumn(), TextColumn(unit)) if unit else (TaskProgressColumn(),)
+    )
+    return (
+        TextColumn(
+            "{task.description}",
+            table_column=Column(ratio=1, no_wrap=True, overflow="ellipsis", min_width=6),
+        ),
+        BarColumn(bar_width=None, table_column=Column(ratio=2)),
+        *count,
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+    )
+
+
 @contextlib.contextmanager
 def progress_bar(enabled: bool, total: int, description: str) -> Iterator[Callable[[int], None]]:
     """A rich progress bar over episodes (to stderr); yields ``advance(n)``."""
@@ -192,28 +225,10 @@ def progress_bar(enabled: bool, total: int, description: str) -> Iterator[Callab
         yield lambda n: None
         return
     from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-    from rich.table import Column
+    from rich.progress import Progress
 
-    # On a narrow terminal the description gives way (cut with an ellipsis) and the bar
-    # shrinks; the counts and the times keep their full width.
     with Progress(
-        TextColumn(
-            "{task.description}",
-            table_column=Column(ratio=1, no_wrap=True, overflow="ellipsis", min_width=6),
-        ),
-        BarColumn(bar_width=None, table_column=Column(ratio=2)),
-        MofNCompleteColumn(),
-        TextColumn("episodes"),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
+        *progress_columns("episodes"),
         console=Console(stderr=True),
         transient=True,
         expand=True,

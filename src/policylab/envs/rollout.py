@@ -129,6 +129,10 @@ def rollout(
         terminated = bool(mdp.terminal[s])
     else:
         env = env_or_mdp
+        if not (hasattr(env, "reset") and hasattr(env, "step")):
+            raise InvalidArgumentError(
+                f"rollout runs in a FiniteMDP or a Gymnasium env; got {type(env).__name__}"
+            )
         env_seed = int(rng.integers(2**31 - 1))
         obs, _ = env.reset(seed=env_seed)
         states.append(int(obs))

@@ -599,7 +599,12 @@ class FiniteMDP:
         if action_mask is None:
             mask = np.ones((S, A), dtype=bool)
         else:
-            mask = np.asarray(action_mask, dtype=bool)
+            mask = np.asarray(action_mask)
+            if mask.dtype.kind not in "biu":
+                raise InvalidMDPError(
+                    f"action_mask must be a boolean (S, A) array; got dtype {mask.dtype}"
+                )
+            mask = mask.astype(bool)
             if mask.shape != (S, A):
                 raise ShapeError(
                     f"action_mask has shape {mask.shape}; expected (S, A) = ({S}, {A})"
@@ -710,7 +715,12 @@ class FiniteMDP:
             import gymnasium as gym
 
             env_id = env
-            env = gym.make(env_id)
+            try:
+                env = gym.make(env_id)
+            except Exception as e:  # gymnasium raises its own error types for unknown ids
+                raise InvalidMDPError(
+                    f"cannot make Gymnasium env {env_id!r}: {' '.join(str(e).split())}"
+                ) from None
         else:
             spec = getattr(env, "spec", None)
             env_id = getattr(spec, "id", None) or type(env).__name__

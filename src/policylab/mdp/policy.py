@@ -33,6 +33,7 @@ class Policy:
     __slots__ = ("_probs", "actions", "mask", "states", "terminal")
 
     def __init__(self, mdp: FiniteMDP, probs: NDArray[np.float64]) -> None:
+        _require_mdp(mdp)
         self.states = mdp.states
         self.actions = mdp.actions
         self.terminal = mdp.terminal
@@ -84,6 +85,7 @@ class Policy:
 
         Every non-terminal state must be given; actions left out get probability 0.
         """
+        _require_mdp(mdp)
         probs = np.zeros((mdp.n_states, mdp.n_actions))
         given = set()
         for s_lab, row in _as_mapping(mapping, "stochastic").items():
@@ -111,6 +113,7 @@ class Policy:
     @classmethod
     def uniform(cls, mdp: FiniteMDP) -> Policy:
         """The equiprobable random policy over A(s) in every non-terminal state."""
+        _require_mdp(mdp)
         m = mdp.action_mask.astype(np.float64)
         n = m.sum(axis=1, keepdims=True)
         return cls(mdp, np.divide(m, n, out=np.zeros_like(m), where=n > 0))
@@ -118,6 +121,7 @@ class Policy:
     @classmethod
     def from_actions(cls, mdp: FiniteMDP, actions: ArrayLike) -> Policy:
         """A deterministic policy from one action index per state (ignored on terminals)."""
+        _require_mdp(mdp)
         arr = np.asarray(actions)
         if arr.dtype.kind not in "iu" and not (
             arr.dtype.kind == "f" and np.all(np.isfinite(arr)) and np.all(arr == np.round(arr))
@@ -221,6 +225,15 @@ class Policy:
     def __repr__(self) -> str:
         kind = "deterministic" if self.is_deterministic else "stochastic"
         return f"Policy({kind}, states={len(self.states)}, actions={len(self.actions)})"
+
+
+def _require_mdp(mdp: Any) -> None:
+    from policylab.mdp.finite import FiniteMDP
+
+    if not isinstance(mdp, FiniteMDP):
+        raise InvalidPolicyError(
+            f"a policy is built for a FiniteMDP; got {type(mdp).__name__} {mdp!r:.60}"
+        )
 
 
 def _as_mapping(x: Any, what: str) -> Mapping[Any, Any]:

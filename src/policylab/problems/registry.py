@@ -108,8 +108,28 @@ def problem(name: str) -> ProblemSpec:
 
 
 def get_problem(name: str, **kwargs: Any) -> FiniteMDP:
-    """Build a registered problem by name, passing keyword arguments to its builder."""
-    return problem(name).builder(**kwargs)
+    """Build a registered problem by name, passing keyword arguments to its builder.
+
+    Raises:
+        UnknownProblemError: An unknown name.
+        InvalidArgumentError: A keyword the builder does not take (the message lists those
+            it takes).
+    """
+    import inspect
+
+    from policylab.exceptions import InvalidArgumentError
+
+    spec = problem(name)
+    sig = inspect.signature(spec.builder)
+    try:
+        sig.bind(**kwargs)
+    except TypeError:
+        unknown = sorted(set(kwargs) - set(sig.parameters))
+        raise InvalidArgumentError(
+            f"problem {spec.name!r} takes no parameter {', '.join(map(repr, unknown))}; its "
+            f"parameters are: {', '.join(sig.parameters) or '(none)'}"
+        ) from None
+    return spec.builder(**kwargs)
 
 
 def list_problems() -> list[ProblemSpec]:

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from policylab.exceptions import InvalidArgumentError
+from policylab.exceptions import InvalidArgumentError, PolicylabError, ShapeError
 
 __all__ = [
     "FIGURE_FORMATS",
@@ -29,6 +29,7 @@ __all__ = [
     "check_choice",
     "check_count",
     "check_figure_path",
+    "check_float_array",
     "check_fraction",
     "check_gamma",
     "check_int",
@@ -246,6 +247,41 @@ def check_seed(value: Any, name: str = "seed") -> int | None:
     if not 0 <= v <= MAX_SEED:
         raise InvalidArgumentError(f"{name} must be a non-negative integer below 2**63; got {v}")
     return v
+
+
+def check_float_array(
+    value: Any,
+    name: str,
+    *,
+    expected: str = "an array of real numbers",
+    error: type[PolicylabError] = InvalidArgumentError,
+) -> np.ndarray[Any, np.dtype[np.float64]]:
+    """An array of real numbers as float64 (bools and integers too), never NumPy's error.
+
+    Strings (even ``"0.5"``), complex numbers and other objects are refused, and nested
+    lists of different lengths give a :class:`~policylab.exceptions.ShapeError`.
+
+    Args:
+        value: What the user gave.
+        name: The argument's name in messages.
+        expected: What it should be, for the message.
+        error: The error type to raise (a policylab error the caller documents).
+    """
+    try:
+        arr = np.asarray(value)
+    except ValueError:  # ragged nested lists
+        raise ShapeError(
+            f"{name} has rows of different lengths; expected a rectangular array"
+        ) from None
+    if arr.dtype.kind in "biuf":
+        return arr.astype(np.float64)
+    if arr.dtype.kind == "O":
+        try:
+            return np.asarray(arr, dtype=np.float64)
+        except (TypeError, ValueError):
+            pass
+    first = f" (first entry {arr.ravel()[:1].tolist()[0]!r})" if arr.size else ""
+    raise error(f"{name} must be {expected}; got an array of dtype {arr.dtype}{first}")
 
 
 def as_generator(seed: Any, name: str = "seed") -> np.random.Generator:

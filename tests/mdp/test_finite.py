@@ -377,8 +377,13 @@ def test_messages_show_numbers_without_numpy_reprs():
 @pytest.mark.parametrize(
     ("P", "R", "kwargs", "words"),
     [
-        (np.array([[["a", "b"], ["c", "d"]]]), np.zeros((2, 1)), {}, "P must hold real numbers"),
-        ([[[1.0, 0.0], [0.0, 1.0]]], [["x"], ["y"]], {}, "R must hold real numbers"),
+        (
+            np.array([[["a", "b"], ["c", "d"]]]),
+            np.zeros((2, 1)),
+            {},
+            "P must be an array of real numbers",
+        ),
+        ([[[1.0, 0.0], [0.0, 1.0]]], [["x"], ["y"]], {}, "R must be an array of real numbers"),
         ([[[1.0, 0.0], [0.0]]], np.zeros((2, 1)), {}, "rows of different lengths"),
         ([[[1.0, 0.0], [0.0, 1.0]]], np.zeros((2, 1)), {"terminal": ["s1"]}, "terminal must"),
         ([[[1.0, 0.0], [0.0, 1.0]]], np.zeros((2, 1)), {"initial": ["a", "b"]}, "initial must"),

@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 from policylab.exceptions import InvalidMDPError, ShapeError, UnknownLabelError
 from policylab.mdp.grid import GridLayout
-from policylab.validation import check_gamma, fmt_number
+from policylab.validation import check_float_array, check_gamma, fmt_number
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -854,25 +854,7 @@ def _initial_from(
 
 def _float_array(x: Any, what: str) -> NDArray[np.float64]:
     """``x`` as a float64 array, or a policylab error naming ``what`` (no NumPy message)."""
-    try:
-        arr = np.asarray(x)
-    except ValueError:  # ragged nested lists
-        raise ShapeError(
-            f"{what} has rows of different lengths; expected a rectangular array"
-        ) from None
-    if arr.dtype.kind not in "biuf":
-        if arr.dtype.kind == "O":
-            try:
-                return np.asarray(arr, dtype=np.float64)
-            except (TypeError, ValueError):
-                pass
-        raise InvalidMDPError(
-            f"{what} must hold real numbers; got an array of dtype {arr.dtype} "
-            f"(first entry {arr.ravel()[:1].tolist()[0]!r})"
-            if arr.size
-            else f"{what} must hold real numbers; got an empty array of dtype {arr.dtype}"
-        )
-    return arr.astype(np.float64)
+    return check_float_array(x, what, error=InvalidMDPError)
 
 
 def _eps_of(dtype: Any) -> float:

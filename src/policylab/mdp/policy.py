@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from policylab.exceptions import InvalidPolicyError, UnknownLabelError
-from policylab.validation import fmt_number
+from policylab.validation import check_float_array, fmt_number
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -49,13 +49,13 @@ class Policy:
             InvalidPolicyError: If the shape is wrong, a non-terminal row does not sum
                 to 1, or mass lies on an unavailable action.
         """
-        try:
-            arr = np.asarray(probs, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise InvalidPolicyError(
-                f"policy array must be an (S, A) = ({mdp.n_states}, {mdp.n_actions}) array of "
-                f"numbers; got a {type(probs).__name__} that is not one"
-            ) from None
+        _require_mdp(mdp)
+        arr = check_float_array(
+            probs,
+            "policy array",
+            expected=f"an (S, A) = ({mdp.n_states}, {mdp.n_actions}) array of numbers",
+            error=InvalidPolicyError,
+        )
         return cls(mdp, arr)
 
     @classmethod

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from collections.abc import Callable
 
 import pytest
 
-from policylab.cli.main import main
+RunCLI = Callable[[list[str]], tuple[int, str, str]]  # the run_cli fixture (conftest.py)
+
 
 LEARN = ["learn", "q-learning", "recycling-robot"]
 SOLVE = ["solve", "recycling-robot"]
@@ -80,19 +82,11 @@ CASES: list[tuple[list[str], int, list[str]]] = [
 ]
 
 
-def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    with pytest.raises(SystemExit) as exc:
-        main(argv)
-        raise SystemExit(0)
-    out = capsys.readouterr()
-    return int(exc.value.code or 0), out.out, out.err
-
-
 @pytest.mark.parametrize(("argv", "code", "words"), CASES, ids=[" ".join(c[0]) for c in CASES])
 def test_bad_input_exits_with_one_line(
-    argv: list[str], code: int, words: list[str], capsys: pytest.CaptureFixture[str]
+    argv: list[str], code: int, words: list[str], run_cli: RunCLI
 ) -> None:
-    got, out, err = _run(argv, capsys)
+    got, out, err = run_cli(argv)
     assert got == code, err
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
@@ -121,7 +115,7 @@ def test_the_entry_point_gives_the_same_one_line(argv: list[str]) -> None:
 
 
 def test_outputs_are_refused_before_any_learning(
-    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    monkeypatch: pytest.MonkeyPatch, run_cli: RunCLI
 ) -> None:
     from policylab.tabular.registry import algorithm
 
@@ -131,14 +125,14 @@ def test_outputs_are_refused_before_any_learning(
         raise AssertionError("the learner ran before the output was checked")
 
     monkeypatch.setitem(spec.__dict__, "learner", learner)
-    code, _, err = _run([*LEARN, "--plot", "out.xyz"], capsys)
+    code, _, err = run_cli([*LEARN, "--plot", "out.xyz"])
     assert code == 2 and "'.xyz'" in err
-    code, _, err = _run([*LEARN, "--plot", "/proc/nope/x.png"], capsys)
+    code, _, err = run_cli([*LEARN, "--plot", "/proc/nope/x.png"])
     assert code == 2 and "cannot be written" in err
 
 
 def test_solve_refuses_its_figure_path_before_solving(
-    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    monkeypatch: pytest.MonkeyPatch, run_cli: RunCLI
 ) -> None:
     import policylab.planning
 
@@ -146,23 +140,23 @@ def test_solve_refuses_its_figure_path_before_solving(
         raise AssertionError("solved before the output was checked")
 
     monkeypatch.setattr(policylab.planning, "policy_iteration", solver)
-    code, _, err = _run([*SOLVE, "--plot", "/proc/nope/x.png"], capsys)
+    code, _, err = run_cli([*SOLVE, "--plot", "/proc/nope/x.png"])
     assert code == 2 and "cannot be written" in err
 
 
-def test_version_and_completion(capsys: pytest.CaptureFixture[str]) -> None:
+def test_version_and_completion(run_cli: RunCLI) -> None:
     import policylab
 
-    code, out, _ = _run(["--version"], capsys)
+    code, out, _ = run_cli(["--version"])
     assert code == 0 and out.strip() == f"policylab {policylab.__version__}"
-    code, out, _ = _run(["--help"], capsys)
+    code, out, _ = run_cli(["--help"])
     assert code == 0 and "--install-completion" in out and "--version" in out
 
 
-def test_help_shows_flags_without_a_bool_value(capsys: pytest.CaptureFixture[str]) -> None:
+def test_help_shows_flags_without_a_bool_value(run_cli: RunCLI) -> None:
     for argv in (["solve", "--help"], ["learn", "q-learning", "--help"], ["problems", "--help"]):
-        code, out, _ = _run(argv, capsys)
+        code, out, _ = run_cli(argv)
         assert code == 0 and "--json" in out
         assert "<bool>" not in out, argv
-    code, out, _ = _run(["learn", "q-learning", "--help"], capsys)
+    code, out, _ = run_cli(["learn", "q-learning", "--help"])
     assert "design.md" not in out

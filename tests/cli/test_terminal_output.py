@@ -4,27 +4,21 @@ from __future__ import annotations
 
 import io
 import json
+from collections.abc import Callable
 
 import pytest
 from rich.console import Console
 
 from policylab.cli.cmd_learn import q_tables
 from policylab.cli.common import emit_table
-from policylab.cli.main import main
+
+RunCLI = Callable[[list[str]], tuple[int, str, str]]  # the run_cli fixture (conftest.py)
 
 
-def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    with pytest.raises(SystemExit) as exc:
-        main(argv)
-        raise SystemExit(0)
-    out = capsys.readouterr()
-    return int(exc.value.code or 0), out.out, out.err
-
-
-def test_problems_in_a_pipe_never_cut_an_identifier(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = _run(["problems"], capsys)
+def test_problems_in_a_pipe_never_cut_an_identifier(run_cli: RunCLI) -> None:
+    code, out, _ = run_cli(["problems"])
     assert code == 0 and "…" not in out
-    code, js, _ = _run(["problems", "--json"], capsys)
+    code, js, _ = run_cli(["problems", "--json"])
     lines = out.splitlines()
     for p in json.loads(js):
         # one line per problem holds its whole name and its whole Gymnasium id
@@ -71,10 +65,10 @@ def test_q_tables_fit_80_columns(n_states: int, n_actions: int) -> None:
 
 
 def test_wide_q_table_of_maximization_bias_is_transposed(
-    capsys: pytest.CaptureFixture[str],
+    run_cli: RunCLI,
 ) -> None:
-    code, out, _ = _run(
-        ["learn", "double-q-learning", "maximization-bias", "-n", "50", "--seed", "0"], capsys
+    code, out, _ = run_cli(
+        ["learn", "double-q-learning", "maximization-bias", "-n", "50", "--seed", "0"]
     )
     assert code == 0 and "one row per action" in out
     assert max(len(ln) for ln in out.splitlines()) <= 100

@@ -160,3 +160,9 @@ def test_help_shows_flags_without_a_bool_value(run_cli: RunCLI) -> None:
         assert "<bool>" not in out, argv
     code, out, _ = run_cli(["learn", "q-learning", "--help"])
     assert "design.md" not in out
+
+
+@pytest.mark.parametrize("argv", [[], ["learn"], ["plot"]])
+def test_no_arguments_show_the_help_and_no_empty_error(argv: list[str], run_cli: RunCLI) -> None:
+    code, out, err = run_cli(argv)
+    assert code == 2 and "Usage: policylab" in out and "error" not in err

@@ -156,6 +156,10 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(2)
     except Exception as e:
         if isinstance(e, _click_exception_types()):
+            if type(e).__name__ == "NoArgsIsHelpError":  # the help is the answer (Click: exit 2)
+                if e.format_message().strip():  # type: ignore[attr-defined]
+                    typer.echo(e.format_message(), err=True)  # type: ignore[attr-defined]
+                sys.exit(2)
             typer.echo(f"policylab: error: {_usage_message(e, args)}", err=True)
             sys.exit(int(getattr(e, "exit_code", 2)) or 2)
         if os.environ.get("POLICYLAB_DEBUG"):

@@ -22,7 +22,6 @@ from policylab.tabular.common import MAX_EPISODES
 from policylab.validation import (
     check_count,
     check_figure_path,
-    check_gamma,
     check_seed,
     did_you_mean,
 )
@@ -52,12 +51,12 @@ def _resolve(name: str, gamma: float | None, use_env: bool) -> tuple[Any, Any]:
     """
     from gymnasium import spaces
 
-    from policylab.cli.common import load_problem, make_gym_env
+    from policylab.cli.common import check_gamma_option, load_problem, make_gym_env
     from policylab.envs import MDPEnv
     from policylab.mdp.finite import FiniteMDP
     from policylab.problems.registry import find_problem, get_problem
 
-    gamma = check_gamma(gamma, 1.0) if gamma is not None else None
+    gamma = check_gamma_option(gamma)
     spec = find_problem(name)
     if spec is not None:
         mdp = spec.builder()
@@ -248,9 +247,7 @@ def _make_command(spec: Any) -> Callable[..., None]:
             "max_steps": check_count(kw.pop("max_steps"), "--max-steps", maximum=MAX_EPISODES),
             "progress": not json_out,
         }
-        gamma = kw.pop("gamma")
-        gamma = None if gamma is None else check_gamma(gamma, None, "--gamma")
-        problem, model = _resolve(problem_name, gamma, use_env)
+        problem, model = _resolve(problem_name, kw.pop("gamma"), use_env)
         if model is not None and model is not problem:
             args["model"] = model
         if spec.kind == "prediction":

@@ -17,7 +17,6 @@ from policylab.validation import (
     check_choice,
     check_count,
     check_figure_path,
-    check_gamma,
     check_positive,
     did_you_mean,
 )
@@ -97,7 +96,7 @@ def solve_command(
     )
 
     plot, tol = _check_outputs(plot, max_rows), check_positive(tol, "--tol")
-    mdp = load_problem(problem, _check_gamma(gamma))
+    mdp = load_problem(problem, gamma)
     m = _choice(method, tuple(METHOD_NAMES), "--method")
     with (
         console.status(f"solving {mdp.name} by {METHOD_NAMES[m]} ...", spinner="dots")
@@ -156,7 +155,7 @@ def evaluate_command(
 
     how = _choice(method, ("exact", "iterative"), "--method")
     plot = _check_outputs(plot, max_rows)
-    mdp = load_problem(problem, _check_gamma(gamma))
+    mdp = load_problem(problem, gamma)
     pi = load_policy(mdp, problem, policy)
     res = evaluate_policy(mdp, pi, method=how, return_result=True)
     if json_out:
@@ -228,11 +227,6 @@ def load_policy(mdp: FiniteMDP, problem: str, spec: str) -> Policy:
             out[actions[a_str]] = p
         mapping[states[s_str]] = out
     return Policy.stochastic(mdp, mapping)
-
-
-def _check_gamma(gamma: float | None) -> float | None:
-    """``--gamma`` checked (None: the problem's own)."""
-    return None if gamma is None else check_gamma(gamma, None, "--gamma")
 
 
 def _check_outputs(plot: Path | None, max_rows: int) -> Path | None:

@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 
 from policylab.cli.common import console
-from policylab.validation import check_figure_path, check_gamma
+from policylab.validation import check_figure_path
 
 __all__ = ["register"]
 
@@ -42,10 +42,6 @@ def _out_path(out: Path | None, problem: str, kind: str) -> Path:
         safe = problem.replace("/", "_")
         out = Path("runs") / "plots" / f"{safe}-{kind}.png"
     return check_figure_path(out, "--out")
-
-
-def _gamma(gamma: float | None) -> float | None:
-    return None if gamma is None else check_gamma(gamma, None, "--gamma")
 
 
 @plot_app.command("values")
@@ -81,7 +77,7 @@ def values_command(
     from policylab.plot import save_solution_figure
 
     target = _out_path(out, problem, f"{policy}-values")
-    mdp = load_problem(problem, _gamma(gamma))
+    mdp = load_problem(problem, gamma)
     pi = load_policy(mdp, problem, policy)
     v = evaluate_policy(mdp, pi)
     qv = action_values(mdp, v) if q else None
@@ -121,7 +117,7 @@ def optimal_command(
     from policylab.plot import save_solution_figure
 
     target = _out_path(out, problem, "optimal")
-    mdp = load_problem(problem, _gamma(gamma))
+    mdp = load_problem(problem, gamma)
     res = value_iteration(mdp)
     path = save_solution_figure(
         mdp,
@@ -159,7 +155,7 @@ def q_table_command(
     from policylab.plot import q_table_figure, save_figure
 
     target = _out_path(out, problem, f"{policy}-q-table")
-    mdp = load_problem(problem, _gamma(gamma))
+    mdp = load_problem(problem, gamma)
     if policy.strip().lower() == "optimal":
         qv = value_iteration(mdp).q
         what = "q*"

@@ -15,6 +15,7 @@ from policylab.problems.registry import find_problem, unknown_problem_message
 from policylab.validation import check_gamma
 
 __all__ = [
+    "check_gamma_option",
     "console",
     "emit_table",
     "err_console",
@@ -55,13 +56,18 @@ def make_gym_env(name: str, **kwargs: Any) -> Any:
         ) from None
 
 
+def check_gamma_option(gamma: float | None) -> float | None:
+    """``--gamma``: None (the problem's own) or a number in [0, 1]."""
+    return None if gamma is None else check_gamma(gamma, None, "--gamma")
+
+
 def load_problem(name: str, gamma: float | None = None) -> FiniteMDP:
     """A built-in problem by CLI name, or a Gymnasium id whose env exposes ``P``.
 
     Raises:
         UnknownProblemError: If neither a built-in problem nor a usable Gymnasium id.
     """
-    gamma = check_gamma(gamma, 1.0) if gamma is not None else None
+    gamma = check_gamma_option(gamma)
     spec = find_problem(name)
     if spec is not None:
         mdp = spec.builder()

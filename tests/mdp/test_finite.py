@@ -393,3 +393,37 @@ def test_messages_show_numbers_without_numpy_reprs():
 def test_from_arrays_bad_input_is_a_policylab_error(P, R, kwargs, words):
     with pytest.raises(pl.exceptions.PolicylabError, match=words):
         pl.FiniteMDP.from_arrays(P, R, **kwargs)
+
+
+def test_low_level_step_and_sample_check_indices_and_generator():
+    robot = pl.problems.recycling_robot()
+    rng = np.random.default_rng(0)
+    with pytest.raises(pl.exceptions.InvalidActionError, match=r"state index in \[0, 2\)"):
+        robot.step(99, 0, rng)
+    with pytest.raises(InvalidArgumentError, match="numpy.random.Generator"):
+        robot.step(0, 0, 3)
+    pi = pl.Policy.uniform(robot)
+    with pytest.raises(pl.exceptions.InvalidPolicyError, match="non-terminal state"):
+        pi.sample(99, rng)
+    with pytest.raises(pl.exceptions.InvalidPolicyError, match="numpy.random.Generator"):
+        pi.sample(0, 5)
+
+
+@pytest.mark.parametrize(
+    ("rows", "reward", "kwargs", "words"),
+    [
+        ("S.G", lambda a, b, k: 0.0, {}, "a list of strings, one per row"),
+        ([1, 2], lambda a, b, k: 0.0, {}, "a list of strings"),
+        (["S.G"], 5, {}, "reward must be a function"),
+        (["S.G"], lambda a, b, k: "x", {}, "returned 'x'; it must return a number"),
+        (["S.G"], lambda a, b, k: 0.0, {"wind": ["a", "b", "c"]}, "wind must hold integers"),
+        (["S.G"], lambda a, b, k: 0.0, {"gamma": 3}, "gamma must be in [0, 1]"),
+    ],
+)
+def test_grid_mdp_bad_input_is_a_policylab_error(rows, reward, kwargs, words):
+    from policylab.mdp.grid import grid_mdp
+
+    legend = {"S": "start", ".": "grass", "G": "goal"}
+    with pytest.raises(pl.exceptions.PolicylabError) as err:
+        grid_mdp(rows, legend, reward, **kwargs)
+    assert words in str(err.value)

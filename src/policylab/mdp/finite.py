@@ -16,7 +16,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import scipy.sparse as sp
 
-from policylab.exceptions import InvalidMDPError, ShapeError, UnknownLabelError
+from policylab.exceptions import (
+    InvalidArgumentError,
+    InvalidMDPError,
+    ShapeError,
+    UnknownLabelError,
+)
 from policylab.mdp.grid import GridLayout
 from policylab.validation import check_float_array, check_gamma, fmt_number
 
@@ -337,11 +342,20 @@ class FiniteMDP:
         Returns:
             ``(next_state_index, reward, terminated)``.
         """
+        from policylab.exceptions import InvalidActionError
+
+        if not (0 <= s < self.n_states and 0 <= a < self.n_actions):
+            raise InvalidActionError(
+                f"step takes a state index in [0, {self.n_states}) and an action index in "
+                f"[0, {self.n_actions}); got s={s!r}, a={a!r} (labels: state_index, action_index)"
+            )
+        if not isinstance(rng, np.random.Generator):
+            raise InvalidArgumentError(
+                f"rng must be a numpy.random.Generator; got {type(rng).__name__}"
+            )
         row = s * self.n_actions + a
         lo, hi = int(self.indptr[row]), int(self.indptr[row + 1])
         if hi == lo:
-            from policylab.exceptions import InvalidActionError
-
             if self.terminal[s]:
                 raise InvalidActionError(
                     f"state {self.states[s]!r} is terminal; no action can be taken"

@@ -197,6 +197,15 @@ class Policy:
 
     def sample(self, s: int, rng: np.random.Generator) -> int:
         """Draw an action index in state index ``s``."""
+        if not 0 <= s < len(self.states) or self.terminal[s]:
+            raise InvalidPolicyError(
+                f"sample takes the index of a non-terminal state in [0, {len(self.states)}); "
+                f"got {s!r}"
+            )
+        if not isinstance(rng, np.random.Generator):
+            raise InvalidPolicyError(
+                f"rng must be a numpy.random.Generator; got {type(rng).__name__}"
+            )
         row = self._probs[s]
         k = int(np.searchsorted(np.cumsum(row), rng.random(), side="right"))
         return min(k, int(np.flatnonzero(row)[-1]))

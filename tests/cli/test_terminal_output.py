@@ -9,8 +9,7 @@ from collections.abc import Callable
 import pytest
 from rich.console import Console
 
-from policylab.cli.cmd_learn import q_tables
-from policylab.cli.common import emit_table
+from policylab.cli.common import emit_table, state_action_tables
 
 RunCLI = Callable[[list[str]], tuple[int, str, str]]  # the run_cli fixture (conftest.py)
 
@@ -48,14 +47,17 @@ def test_a_table_on_a_narrow_terminal_folds_cells_instead_of_cutting_them() -> N
     assert "".join(c[2].strip() for c in body) == "policylab/MountainGridworld-v0"
 
 
-def _rows(n_states: int, n_actions: int) -> list[tuple[str, list[str], str, str]]:
-    return [(f"s{s}", ["-0.1234"] * n_actions, "0.5000", "a0") for s in range(n_states)]
-
-
 @pytest.mark.parametrize(("n_states", "n_actions"), [(2, 12), (40, 12), (3, 4), (60, 30)])
 def test_q_tables_fit_80_columns(n_states: int, n_actions: int) -> None:
     actions = [f"b{j}" for j in range(n_actions)]
-    tables = q_tables(_rows(n_states, n_actions), actions, 80)
+    tables = state_action_tables(
+        "Q",
+        [f"s{s}" for s in range(n_states)],
+        [f"Q(s, {a})" for a in actions],
+        [["-0.1234"] * n_actions for _ in range(n_states)],
+        {"V(s)": ["0.5000"] * n_states, "greedy": ["b0"] * n_states},
+        80,
+    )
     lines = _render(tables, 80)
     assert max(len(ln) for ln in lines) <= 80
     assert "…" not in "\n".join(lines)
@@ -90,3 +92,8 @@ def test_progress_bar_keeps_its_time_columns_at_80_columns(unit: str | None) -> 
     assert len(line) <= 80, line
     assert line.rstrip().endswith("-:--:--"), line  # the remaining time, whole
     assert ("1234567/10000000 episodes" if unit else "12%") in line
+
+
+def test_show_transposes_a_wide_expected_reward_table(run_cli: RunCLI) -> None:
+    code, out, _ = run_cli(["show", "maximization-bias", "--max-rows", "3"])
+    assert code == 0 and "r(s, a) = sum p(s', r | s, a) r (one row per action)" in out

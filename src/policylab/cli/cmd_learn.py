@@ -16,7 +16,14 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from policylab.cli.common import console, emit_table, err_console, fmt_label, print_json
+from policylab.cli.common import (
+    console,
+    emit_table,
+    err_console,
+    fmt_label,
+    print_json,
+    state_action_tables,
+)
 from policylab.exceptions import InvalidArgumentError
 from policylab.tabular.common import MAX_EPISODES
 from policylab.validation import (
@@ -107,21 +114,34 @@ def _show(res: Any, max_rows: int) -> None:
         f"[bold]{res.algorithm}[/] on [bold]{res.problem}[/]: {res.episodes} episodes, "
         f"{res.steps} steps, {res.seconds:.3g} s ({res.params.get('path')} path)"
     )
-    rows: list[tuple[str, list[str], str, str]] = []
+    states: list[str] = []
+    cells: list[list[str]] = []
+    v_col: list[str] = []
+    greedy_col: list[str] = []
     for s, lab in enumerate(res.states):
         if res.terminal[s]:
             continue
-        if len(rows) >= max_rows:
+        if len(states) >= max_rows:
             break
-        cells = [
-            f"{res.q[s, a]:.4f}" if res.action_mask[s, a] else "-" for a in range(len(res.actions))
-        ]
-        v = f"{res.v[s]:.4f}" if res.v is not None else "-"
-        greedy = fmt_label(res.actions[int(np.argmax(res.policy[s]))])
-        rows.append((fmt_label(lab), cells, v, greedy))
-    for table in q_tables(rows, [fmt_label(a) for a in res.actions], console.width):
+        states.append(fmt_label(lab))
+        cells.append(
+            [
+                f"{res.q[s, a]:.4f}" if res.action_mask[s, a] else "-"
+                for a in range(len(res.actions))
+            ]
+        )
+        v_col.append(f"{res.v[s]:.4f}" if res.v is not None else "-")
+        greedy_col.append(fmt_label(res.actions[int(np.argmax(res.policy[s]))]))
+    for table in state_action_tables(
+        "Learned Q(s, a), V(s) and the greedy policy",
+        states,
+        [f"Q(s, {fmt_label(a)})" for a in res.actions],
+        cells,
+        {"V(s)": v_col, "greedy": greedy_col},
+        console.width,
+    ):
         emit_table(table)
-    shown = len(rows)
+    shown = len(states)
     n_live = int((~res.terminal).sum())
     if n_live > shown:
         console.print(f"[dim]... {n_live - shown} more states (raise --max-rows)[/]")
@@ -146,79 +166,6 @@ def _show(res: Any, max_rows: int) -> None:
             "-" if not np.isfinite(share) else f"{100 * share:.1f}%",
         )
     emit_table(curve)
-
-
-def q_tables(
-    rows: list[tuple[str, list[str], str, str]], actions: list[str], width: int
-) -> list[Table]:
-    """The Q-table as tables that fit ``width`` columns.
-
-    One row per state (Q(s, a) for each action, V(s), the greedy action) when that fits;
-    else transposed, one row per action, when there are fewer states than actions and
-    that fits; else the actions split into groups of columns, one table each (pages).
-    """
-
-    def need(labels: list[str], cols: list[list[str]]) -> int:
-        first = max([len("state"), *(len(x) for x in labels)])
-        return first + 4 + sum(max(len(x) for x in col) + 3 for col in cols)
-
-    headers = [f"Q(s, {a})" for a in actions]
-    cols = [[h, *(r[1][j] for r in rows)] for j, h in enumerate(headers)]
-    tail = [["V(s)", *(r[2] for r in rows)], ["greedy", *(r[3] for r in rows)]]
-    title = "Learned Q(s, a), V(s) and the greedy policy"
-    if need([r[0] for r in rows], cols + tail) <= width or not rows:
-        return [_q_table(title, "state", headers, rows)]
-    states = [r[0] for r in rows]
-    t_cols = [[st, *r[1], r[2], r[3]] for st, r in zip(states, rows, strict=True)]
-    if len(rows) < len(actions) and need([*headers, "V(s)", "greedy"], t_cols) <= width:
-        table = Table(title=title + " (one row per action)")
-        table.add_column("", style="bold")
-        for st in states:
-            table.add_column(st, justify="right")
-        for j, h in enumerate(headers):
-            table.add_row(h, *(r[1][j] for r in rows))
-        table.add_row("V(s)", *(r[2] for r in rows))
-        table.add_row("greedy", *(r[3] for r in rows))
-        return [table]
-    tables: list[Table] = []
-    group: list[int] = []
-    for j in range(len(actions)):
-        if group and need(states, [cols[k] for k in [*group, j]] + tail) > width:
-            tables.append(_q_page(title, headers, rows, group, len(tables) + 1))
-            group = []
-        group.append(j)
-    tables.append(_q_page(title, headers, rows, group, len(tables) + 1))
-    return tables
-
-
-def _q_table(
-    title: str, first: str, headers: list[str], rows: list[tuple[str, list[str], str, str]]
-) -> Table:
-    table = Table(title=title)
-    table.add_column(first, style="bold")
-    for h in headers:
-        table.add_column(h, justify="right")
-    table.add_column("V(s)", justify="right")
-    table.add_column("greedy", justify="left")
-    for lab, cells, v, greedy in rows:
-        table.add_row(lab, *cells, v, greedy)
-    return table
-
-
-def _q_page(
-    title: str,
-    headers: list[str],
-    rows: list[tuple[str, list[str], str, str]],
-    group: list[int],
-    page: int,
-) -> Table:
-    sub = [(lab, [cells[j] for j in group], v, g) for lab, cells, v, g in rows]
-    return _q_table(
-        f"{title} (part {page}: actions {group[0] + 1}-{group[-1] + 1} of {len(headers)})",
-        "state",
-        [headers[j] for j in group],
-        sub,
-    )
 
 
 def _make_command(spec: Any) -> Callable[..., None]:

@@ -23,6 +23,7 @@ __all__ = [
     "load_problem",
     "make_gym_env",
     "print_json",
+    "state_action_tables",
     "values_table",
 ]
 
@@ -111,6 +112,89 @@ def emit_table(table: Table, out: Console | None = None) -> None:
         lines.append(plain(table.caption))
     out.file.write("\n".join(lines) + "\n")
     out.file.flush()
+
+
+def state_action_tables(
+    title: str,
+    states: list[str],
+    headers: list[str],
+    cells: list[list[str]],
+    extra: dict[str, list[str]],
+    width: int,
+) -> list[Table]:
+    """A per-state, per-action table (Q(s, a), r(s, a)) as tables that fit ``width`` columns.
+
+    One row per state (a column per action, then the ``extra`` per-state columns) when
+    that fits; else transposed, one row per action, when there are fewer states than
+    actions and that fits; else the actions split into groups of columns, one table each.
+
+    Args:
+        title: Title of the table.
+        states: Row labels, one per state shown.
+        headers: Column headers, one per action.
+        cells: ``cells[i][j]``: the text for state ``i`` and action ``j``.
+        extra: Further per-state columns (``V(s)``, the greedy action), by header.
+        width: The terminal's width.
+    """
+
+    def need(first: list[str], cols: list[list[str]]) -> int:
+        return (
+            max(len(x) for x in ["state", *first])
+            + 4
+            + sum(max(len(x) for x in col) + 3 for col in cols)
+        )
+
+    cols = [[h, *(row[j] for row in cells)] for j, h in enumerate(headers)]
+    tail = [[h, *col] for h, col in extra.items()]
+    if not states or need(states, cols + tail) <= width:
+        return [_state_table(title, states, headers, cells, extra, range(len(headers)))]
+    t_cols = [[st, *cells[i], *(col[i] for col in extra.values())] for i, st in enumerate(states)]
+    if len(states) < len(headers) and need([*headers, *extra], t_cols) <= width:
+        table = Table(title=title + " (one row per action)")
+        table.add_column("", style="bold")
+        for st in states:
+            table.add_column(st, justify="right")
+        for j, h in enumerate(headers):
+            table.add_row(h, *(row[j] for row in cells))
+        for h, col in extra.items():
+            table.add_row(h, *col)
+        return [table]
+    groups: list[list[int]] = [[]]
+    for j in range(len(headers)):
+        if groups[-1] and need(states, [cols[k] for k in [*groups[-1], j]] + tail) > width:
+            groups.append([])
+        groups[-1].append(j)
+    return [
+        _state_table(
+            f"{title} (part {i + 1} of {len(groups)}: actions {g[0] + 1}-{g[-1] + 1} of "
+            f"{len(headers)})",
+            states,
+            headers,
+            cells,
+            extra,
+            g,
+        )
+        for i, g in enumerate(groups)
+    ]
+
+
+def _state_table(
+    title: str,
+    states: list[str],
+    headers: list[str],
+    cells: list[list[str]],
+    extra: dict[str, list[str]],
+    group: Any,
+) -> Table:
+    table = Table(title=title)
+    table.add_column("state", style="bold")
+    for j in group:
+        table.add_column(headers[j], justify="right")
+    for h in extra:
+        table.add_column(h, justify="right" if h != "greedy" else "left")
+    for i, st in enumerate(states):
+        table.add_row(st, *(cells[i][j] for j in group), *(col[i] for col in extra.values()))
+    return table
 
 
 def print_json(obj: Any) -> None:

@@ -7,7 +7,14 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from policylab.cli.common import console, emit_table, fmt_label, load_problem, print_json
+from policylab.cli.common import (
+    console,
+    emit_table,
+    fmt_label,
+    load_problem,
+    print_json,
+    state_action_tables,
+)
 from policylab.validation import check_count
 
 
@@ -110,18 +117,19 @@ def show_command(
     if mdp.n_outcomes > shown:
         console.print(f"[dim]... {mdp.n_outcomes - shown} more outcomes (raise --max-rows)[/]")
     rsa = mdp.expected_reward
-    et = Table(title="Expected reward r(s, a) = sum p(s', r | s, a) r")
-    et.add_column("state", style="bold")
-    for a in mdp.actions:
-        et.add_column(fmt_label(a), justify="right")
-    for i, s in enumerate(mdp.states[:max_rows]):
-        if mdp.terminal[i]:
-            continue
-        et.add_row(
-            fmt_label(s),
-            *[f"{rsa[i, j]:.4g}" if mdp.action_mask[i, j] else "-" for j in range(mdp.n_actions)],
-        )
-    emit_table(et)
+    live = [i for i in range(min(mdp.n_states, max_rows)) if not mdp.terminal[i]]
+    for table in state_action_tables(
+        "Expected reward r(s, a) = sum p(s', r | s, a) r",
+        [fmt_label(mdp.states[i]) for i in live],
+        [fmt_label(a) for a in mdp.actions],
+        [
+            [f"{rsa[i, j]:.4g}" if mdp.action_mask[i, j] else "-" for j in range(mdp.n_actions)]
+            for i in live
+        ],
+        {},
+        console.width,
+    ):
+        emit_table(table)
     if mdp.grid is not None:
         console.print("[bold]Grid[/] (row 0 at the top):")
         for gr in range(mdp.grid.shape[0]):

@@ -32,6 +32,7 @@ __all__ = [
     "check_float_array",
     "check_fraction",
     "check_gamma",
+    "check_generator",
     "check_int",
     "check_number",
     "check_output_dir",
@@ -298,6 +299,15 @@ def as_generator(seed: Any, name: str = "seed") -> np.random.Generator:
     if isinstance(seed, np.random.Generator):
         return seed
     return np.random.default_rng(check_seed(seed, name))
+
+
+def check_generator(
+    rng: Any, name: str = "rng", error: type[PolicylabError] = InvalidArgumentError
+) -> np.random.Generator:
+    """A ``numpy.random.Generator`` (what low-level sampling methods draw from)."""
+    if not isinstance(rng, np.random.Generator):
+        raise error(f"{name} must be a numpy.random.Generator; got {type(rng).__name__}")
+    return rng
 
 
 def check_output_file(path: str | Path, name: str, suffixes: Iterable[str] | None = None) -> Path:

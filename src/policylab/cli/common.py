@@ -144,10 +144,21 @@ def state_action_tables(
             + sum(max(len(x) for x in col) + 3 for col in cols)
         )
 
+    def one_row_per_state(name: str, group: Any) -> Table:
+        table = Table(title=name)
+        table.add_column("state", style="bold")
+        for j in group:
+            table.add_column(headers[j], justify="right")
+        for h in extra:
+            table.add_column(h, justify="right" if h != "greedy" else "left")
+        for i, st in enumerate(states):
+            table.add_row(st, *(cells[i][j] for j in group), *(col[i] for col in extra.values()))
+        return table
+
     cols = [[h, *(row[j] for row in cells)] for j, h in enumerate(headers)]
     tail = [[h, *col] for h, col in extra.items()]
     if not states or need(states, cols + tail) <= width:
-        return [_state_table(title, states, headers, cells, extra, range(len(headers)))]
+        return [one_row_per_state(title, range(len(headers)))]
     t_cols = [[st, *cells[i], *(col[i] for col in extra.values())] for i, st in enumerate(states)]
     if len(states) < len(headers) and need([*headers, *extra], t_cols) <= width:
         table = Table(title=title + " (one row per action)")
@@ -165,36 +176,13 @@ def state_action_tables(
             groups.append([])
         groups[-1].append(j)
     return [
-        _state_table(
+        one_row_per_state(
             f"{title} (part {i + 1} of {len(groups)}: actions {g[0] + 1}-{g[-1] + 1} of "
             f"{len(headers)})",
-            states,
-            headers,
-            cells,
-            extra,
             g,
         )
         for i, g in enumerate(groups)
     ]
-
-
-def _state_table(
-    title: str,
-    states: list[str],
-    headers: list[str],
-    cells: list[list[str]],
-    extra: dict[str, list[str]],
-    group: Any,
-) -> Table:
-    table = Table(title=title)
-    table.add_column("state", style="bold")
-    for j in group:
-        table.add_column(headers[j], justify="right")
-    for h in extra:
-        table.add_column(h, justify="right" if h != "greedy" else "left")
-    for i, st in enumerate(states):
-        table.add_row(st, *(cells[i][j] for j in group), *(col[i] for col in extra.values()))
-    return table
 
 
 def print_json(obj: Any) -> None:

@@ -17,13 +17,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from policylab.exceptions import (
-    InvalidArgumentError,
     InvalidMDPError,
     ShapeError,
     UnknownLabelError,
 )
 from policylab.mdp.grid import GridLayout
-from policylab.validation import check_float_array, check_gamma, fmt_number
+from policylab.validation import check_float_array, check_gamma, check_generator, fmt_number
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -349,10 +348,7 @@ class FiniteMDP:
                 f"step takes a state index in [0, {self.n_states}) and an action index in "
                 f"[0, {self.n_actions}); got s={s!r}, a={a!r} (labels: state_index, action_index)"
             )
-        if not isinstance(rng, np.random.Generator):
-            raise InvalidArgumentError(
-                f"rng must be a numpy.random.Generator; got {type(rng).__name__}"
-            )
+        check_generator(rng)
         row = s * self.n_actions + a
         lo, hi = int(self.indptr[row]), int(self.indptr[row + 1])
         if hi == lo:

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from policylab.exceptions import InvalidPolicyError, UnknownLabelError
-from policylab.validation import check_float_array, fmt_number
+from policylab.validation import check_float_array, check_generator, fmt_number
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -202,10 +202,7 @@ class Policy:
                 f"sample takes the index of a non-terminal state in [0, {len(self.states)}); "
                 f"got {s!r}"
             )
-        if not isinstance(rng, np.random.Generator):
-            raise InvalidPolicyError(
-                f"rng must be a numpy.random.Generator; got {type(rng).__name__}"
-            )
+        check_generator(rng, error=InvalidPolicyError)
         row = self._probs[s]
         k = int(np.searchsorted(np.cumsum(row), rng.random(), side="right"))
         return min(k, int(np.flatnonzero(row)[-1]))

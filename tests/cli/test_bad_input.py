@@ -57,6 +57,7 @@ CASES: list[tuple[list[str], int, list[str]]] = [
     (["plot", "optimal", "gridworld-4x4", "--out", "x.xyz"], 2, ["--out 'x.xyz'", "'.xyz'"]),
     (["plot", "values", "gridworld-4x4", "--out", "/proc/nope/x.png"], 2, ["cannot be written"]),
     (["plot", "q-table", "gridworld-4x4", "--out", "/proc/x.png"], 2, ["cannot be written"]),
+    (["plot", "q-table", "recycling-robot"], 2, ["the Q-table view needs a grid-shaped problem"]),
     (["tour", "--out", "/proc/nope"], 2, ["--out '/proc/nope' cannot be written"]),
     (["tour", "--out", "/proc/version"], 2, ["is an existing file; expected a folder"]),
     (["tour", "--seed", "-1"], 2, ["--seed must be a non-negative integer"]),
@@ -79,6 +80,15 @@ CASES: list[tuple[list[str], int, list[str]]] = [
     (["evaluate", "recycling-robot", "--policy", "/nonexistent/p.json"], 2, ["does not exist"]),
     (["plot", "values", "recycling-robot", "--policy", "nope"], 2, ["unknown policy 'nope'"]),
     (["learn", "mc-prediction", "blackjack", "--policy", "nope"], 2, ["unknown policy 'nope'"]),
+    # options of single algorithms, checked by the learners before they run
+    (["learn", "td-lambda", "random-walk", "--lambda", "2"], 2, ["lambda must be in [0, 1]"]),
+    (["learn", "n-step-sarsa", "windy-gridworld", "--n", "0"], 2, ["n (the number of steps)"]),
+    (["learn", "dyna-q", "windy-gridworld", "--planning-steps", "-1"], 2, ["planning_steps"]),
+    (["learn", "sarsa-lambda", "windy-gridworld", "--trace", "foo"], 2, ["'accumulating'"]),
+    ([*LEARN, "--epsilon", "-0.1"], 2, ["epsilon must stay in [0, 1]"]),
+    (["learn", "mc-prediction", "recycling-robot"], 2, ["Monte Carlo needs an episodic task"]),
+    (["learn", "q-learning", "CartPole-v1"], 2, ["tabular learners need discrete"]),
+    (["solve", "recycling-robot", "--method", "lp", "--gamma", "1"], 2, ["no terminal state"]),
 ]
 
 

@@ -153,9 +153,11 @@ def q_table_command(
     from policylab.cli.common import load_problem
     from policylab.planning import action_values, evaluate_policy, value_iteration
     from policylab.plot import q_table_figure, save_figure
+    from policylab.plot.grid import q_triangles, require_grid
 
     target = _out_path(out, problem, f"{policy}-q-table")
     mdp = load_problem(problem, gamma)
+    q_triangles(require_grid(mdp, "the Q-table view"), mdp)  # refused before solving
     if policy.strip().lower() == "optimal":
         qv = value_iteration(mdp).q
         what = "q*"

@@ -427,3 +427,9 @@ def test_grid_mdp_bad_input_is_a_policylab_error(rows, reward, kwargs, words):
     with pytest.raises(pl.exceptions.PolicylabError) as err:
         grid_mdp(rows, legend, reward, **kwargs)
     assert words in str(err.value)
+
+
+def test_outcomes_with_numpy_numbers_are_written_plainly():
+    with pytest.raises(InvalidMDPError) as err:
+        pl.FiniteMDP.from_dynamics({"a": {"x": [(np.float64(0.5), "a")]}})
+    assert "outcome (0.5, 'a') of" in str(err.value) and "np.float64" not in str(err.value)

@@ -48,6 +48,16 @@ def _sum_error(state: Hashable, action: Hashable, total: float, tol: float) -> I
     )
 
 
+def _fmt_items(x: Any) -> str:
+    """A tuple or list as in a message: its numbers by ``fmt_number`` (no ``np.float64(...)``)."""
+    if isinstance(x, tuple | list):
+        inner = ", ".join(
+            fmt_number(v) if isinstance(v, int | float | np.number) else repr(v) for v in x
+        )
+        return f"({inner}{',' if len(x) == 1 else ''})" if isinstance(x, tuple) else f"[{inner}]"
+    return fmt_number(x) if isinstance(x, int | float | np.number) else repr(x)
+
+
 def _index_of(labels: Sequence[Hashable]) -> dict[Hashable, int]:
     index: dict[Hashable, int] = {}
     for i, lab in enumerate(labels):
@@ -506,7 +516,7 @@ class FiniteMDP:
                 for out in outs_list:
                     if not isinstance(out, Sequence) or isinstance(out, str) or len(out) != 3:
                         raise InvalidMDPError(
-                            f"outcome {out!r} of p(. | s={s_lab!r}, a={a_lab!r}) must be a triple "
+                            f"outcome {_fmt_items(out)} of p(. | s={s_lab!r}, a={a_lab!r}) must be a triple "
                             "(probability, next_state, reward)"
                         )
                     pr, nxt_lab, r = out
@@ -522,7 +532,7 @@ class FiniteMDP:
                         pr_f, r_f = float(pr), float(r)
                     except (TypeError, ValueError):
                         raise InvalidMDPError(
-                            f"outcome {out!r} of p(. | s={s_lab!r}, a={a_lab!r}): probability "
+                            f"outcome {_fmt_items(out)} of p(. | s={s_lab!r}, a={a_lab!r}): probability "
                             "and reward must be numbers"
                         ) from None
                     key = (nxt, r_f)
@@ -750,7 +760,7 @@ class FiniteMDP:
                 for out in P[s][a]:
                     if len(out) != 4:
                         raise InvalidMDPError(
-                            f"{env_id}: P[{s}][{a}] holds {out!r}; expected (prob, next_state, "
+                            f"{env_id}: P[{s}][{a}] holds {_fmt_items(out)}; expected (prob, next_state, "
                             "reward, terminated)"
                         )
                     if out[3]:

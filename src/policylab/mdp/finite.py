@@ -516,8 +516,8 @@ class FiniteMDP:
                 for out in outs_list:
                     if not isinstance(out, Sequence) or isinstance(out, str) or len(out) != 3:
                         raise InvalidMDPError(
-                            f"outcome {_fmt_items(out)} of p(. | s={s_lab!r}, a={a_lab!r}) must be a triple "
-                            "(probability, next_state, reward)"
+                            f"outcome {_fmt_items(out)} of p(. | s={s_lab!r}, a={a_lab!r}) must "
+                            "be a triple (probability, next_state, reward)"
                         )
                     pr, nxt_lab, r = out
                     try:
@@ -532,8 +532,8 @@ class FiniteMDP:
                         pr_f, r_f = float(pr), float(r)
                     except (TypeError, ValueError):
                         raise InvalidMDPError(
-                            f"outcome {_fmt_items(out)} of p(. | s={s_lab!r}, a={a_lab!r}): probability "
-                            "and reward must be numbers"
+                            f"outcome {_fmt_items(out)} of p(. | s={s_lab!r}, a={a_lab!r}): "
+                            "probability and reward must be numbers"
                         ) from None
                     key = (nxt, r_f)
                     acc[key] = acc.get(key, 0.0) + pr_f
@@ -760,8 +760,8 @@ class FiniteMDP:
                 for out in P[s][a]:
                     if len(out) != 4:
                         raise InvalidMDPError(
-                            f"{env_id}: P[{s}][{a}] holds {_fmt_items(out)}; expected (prob, next_state, "
-                            "reward, terminated)"
+                            f"{env_id}: P[{s}][{a}] holds {_fmt_items(out)}; expected (prob, "
+                            "next_state, reward, terminated)"
                         )
                     if out[3]:
                         terminal_set.add(int(out[1]))

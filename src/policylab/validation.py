@@ -19,41 +19,63 @@ from typing import Any
 
 import numpy as np
 
-from policylab.exceptions import InvalidArgumentError
+from policylab.exceptions import InvalidArgumentError, PolicylabError, ShapeError
 
 __all__ = [
+    "FIGURE_FORMATS",
     "MAX_SEED",
+    "Seed",
+    "as_generator",
+    "check_choice",
     "check_count",
+    "check_figure_path",
+    "check_float_array",
     "check_fraction",
     "check_gamma",
+    "check_generator",
     "check_int",
     "check_number",
     "check_output_dir",
     "check_output_file",
     "check_positive",
     "check_seed",
+    "did_you_mean",
     "fmt_number",
     "normalize_name",
 ]
+
+Seed = int | np.random.Generator | None
+"""What every stochastic function takes: an int seed, a Generator, or None (fresh entropy)."""
 
 MAX_SEED = 2**63 - 1
 """Largest seed accepted (NumPy's ``SeedSequence`` takes any non-negative int; numba's
 RNG state and torch's ``manual_seed`` take 64-bit values)."""
 
 
-def fmt_number(x: Any) -> str:
+def fmt_number(x: Any, near: float | None = None) -> str:
     """A number as a user should read it in a message.
 
     Floats get the shortest form that round-trips (``repr`` of a Python float), so
     ``1 + 3e-8`` shows as ``1.00000003`` rather than ``1``; NumPy scalars are written
     like Python numbers (``-0.5``, not ``np.float64(-0.5)``); anything else uses ``repr``.
+
+    Args:
+        x: The number.
+        near: A value ``x`` is compared with (a sum that should be 1): then ``x`` gets
+            just enough significant digits (at least 6) to tell it from ``near``, so
+            ``0.93`` stays ``0.93`` and ``1.00000003`` keeps its last digit.
     """
     if isinstance(x, bool | np.bool_):
         return str(bool(x))
     if isinstance(x, int | np.integer):
         return str(int(x))
     if isinstance(x, float | np.floating):
-        return repr(float(x))
+        v = float(x)
+        if near is None or not math.isfinite(v) or v == near:
+            return repr(v)
+        rel = abs(v - near) / max(abs(v), abs(near))
+        digits = min(17, max(6, math.ceil(-math.log10(rel)) + 2)) if rel > 0 else 17
+        return f"{v:.{digits}g}"
     return repr(x)
 
 
@@ -64,6 +86,37 @@ def normalize_name(name: str) -> str:
     (problems, algorithms) looks names up through this one function.
     """
     return name.strip().lower().replace("_", "-")
+
+
+def did_you_mean(given: str, known: Iterable[str]) -> str:
+    """``" (did you mean 'x'?)"`` for the closest of ``known`` to ``given``, or ``""``."""
+    import difflib
+
+    close = difflib.get_close_matches(given, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def check_choice(value: Any, choices: Iterable[str], name: str) -> str:
+    """One of a fixed set of names, compared after :func:`normalize_name`.
+
+    Returns:
+        The matching entry of ``choices``.
+
+    Raises:
+        InvalidArgumentError: Listing the choices, with the closest one suggested.
+    """
+    known = list(choices)
+    if not isinstance(value, str):
+        raise InvalidArgumentError(
+            f"{name} must be one of {', '.join(known)}; got {type(value).__name__} {value!r}"
+        )
+    by_key = {normalize_name(c): c for c in known}
+    key = normalize_name(value)
+    if key in by_key:
+        return by_key[key]
+    raise InvalidArgumentError(
+        f"{name} must be one of {', '.join(known)}; got {value!r}{did_you_mean(key, by_key)}"
+    )
 
 
 def check_number(
@@ -158,14 +211,24 @@ def check_int(
         )
     v = int(value)
     if (minimum is not None and v < minimum) or (maximum is not None and v > maximum):
-        if maximum is None:
+        if maximum is None or (minimum is not None and v < minimum):
             bound = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
         elif minimum is None:
-            bound = f"an integer <= {maximum}"
+            bound = f"an integer <= {_int_text(maximum)}"
         else:
-            bound = f"an integer in [{minimum}, {maximum}]"
+            bound = f"an integer in [{minimum}, {_int_text(maximum)}]"
         raise InvalidArgumentError(f"{name} must be {bound}; got {v}")
     return v
+
+
+def _int_text(n: int) -> str:
+    """A bound as a user reads it: ``2**62`` rather than 4611686018427387904."""
+    for k in range(31, 64):
+        if n == 2**k:
+            return f"2**{k}"
+        if n == 2**k - 1:
+            return f"2**{k} - 1"
+    return str(n)
 
 
 def check_count(value: Any, name: str, minimum: int = 1, maximum: int | None = None) -> int:
@@ -185,6 +248,66 @@ def check_seed(value: Any, name: str = "seed") -> int | None:
     if not 0 <= v <= MAX_SEED:
         raise InvalidArgumentError(f"{name} must be a non-negative integer below 2**63; got {v}")
     return v
+
+
+def check_float_array(
+    value: Any,
+    name: str,
+    *,
+    expected: str = "an array of real numbers",
+    error: type[PolicylabError] = InvalidArgumentError,
+) -> np.ndarray[Any, np.dtype[np.float64]]:
+    """An array of real numbers as float64 (bools and integers too), never NumPy's error.
+
+    Strings (even ``"0.5"``), complex numbers and other objects are refused, and nested
+    lists of different lengths give a :class:`~policylab.exceptions.ShapeError`.
+
+    Args:
+        value: What the user gave.
+        name: The argument's name in messages.
+        expected: What it should be, for the message.
+        error: The error type to raise (a policylab error the caller documents).
+    """
+    try:
+        arr = np.asarray(value)
+    except ValueError:  # ragged nested lists
+        raise ShapeError(
+            f"{name} has rows of different lengths; expected a rectangular array"
+        ) from None
+    if arr.dtype.kind in "biuf":
+        return arr.astype(np.float64)
+    if arr.dtype.kind == "O":
+        try:
+            return np.asarray(arr, dtype=np.float64)
+        except (TypeError, ValueError):
+            pass
+    first = f" (first entry {arr.ravel()[:1].tolist()[0]!r})" if arr.size else ""
+    raise error(f"{name} must be {expected}; got an array of dtype {arr.dtype}{first}")
+
+
+def as_generator(seed: Any, name: str = "seed") -> np.random.Generator:
+    """The random generator of a stochastic function: a Generator as given, else a new one.
+
+    Args:
+        seed: A ``numpy.random.Generator`` (used as it is), an integer in [0, 2**63 - 1],
+            or None (fresh entropy).
+        name: The argument's name in messages.
+
+    Raises:
+        InvalidArgumentError: Anything else (a negative or float seed, a string).
+    """
+    if isinstance(seed, np.random.Generator):
+        return seed
+    return np.random.default_rng(check_seed(seed, name))
+
+
+def check_generator(
+    rng: Any, name: str = "rng", error: type[PolicylabError] = InvalidArgumentError
+) -> np.random.Generator:
+    """A ``numpy.random.Generator`` (what low-level sampling methods draw from)."""
+    if not isinstance(rng, np.random.Generator):
+        raise error(f"{name} must be a numpy.random.Generator; got {type(rng).__name__}")
+    return rng
 
 
 def check_output_file(path: str | Path, name: str, suffixes: Iterable[str] | None = None) -> Path:
@@ -208,6 +331,35 @@ def check_output_file(path: str | Path, name: str, suffixes: Iterable[str] | Non
         raise InvalidArgumentError(f"{name} {str(p)!r} is a folder; expected a file name")
     _check_writable_parent(p.parent, name, p)
     return p
+
+
+FIGURE_FORMATS = (".png", ".svg", ".pdf")
+"""File formats a figure can be saved in, by suffix (a path without one gets ``.png``)."""
+
+
+def check_figure_path(path: str | Path, name: str = "figure path") -> Path:
+    """Where a figure will be written, checked before the work that draws it.
+
+    A path without a suffix gets ``.png``; otherwise the suffix must be one of
+    :data:`FIGURE_FORMATS`; the file must be writable (see :func:`check_output_file`).
+
+    Returns:
+        The path the figure will have.
+
+    Raises:
+        InvalidArgumentError: Unknown suffix, a folder, or a place that cannot be written.
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise InvalidArgumentError(f"{name} {str(p)!r} is a folder; expected a file name")
+    if p.suffix == "":
+        p = p.with_suffix(".png")
+    elif p.suffix.lower() not in FIGURE_FORMATS:
+        raise InvalidArgumentError(
+            f"{name} {str(path)!r} ends in {p.suffix!r}; expected one of "
+            f"{', '.join(FIGURE_FORMATS)} (or no suffix for PNG)"
+        )
+    return check_output_file(p, name)
 
 
 def check_output_dir(path: str | Path, name: str) -> Path:
@@ -237,6 +389,6 @@ def _check_writable_parent(parent: Path, name: str, target: Path) -> None:
             pass
     except OSError as exc:
         raise InvalidArgumentError(
-            f"{name} {str(target)!r} cannot be written: {str(anc)!r} is not writable "
-            f"({exc.strerror or exc})"
+            f"{name} {str(target)!r} cannot be written: no file can be created in "
+            f"{str(anc)!r} ({exc.strerror or exc})"
         ) from None

@@ -95,4 +95,5 @@ def test_usage_errors_exit_2_without_traceback(args):
         [sys.executable, "-m", "policylab", *args], capture_output=True, text=True
     )
     assert proc.returncode == 2, proc.stderr
-    assert "Traceback" not in proc.stderr and "Error" in proc.stderr
+    assert "Traceback" not in proc.stderr and proc.stderr.startswith("policylab: error:")
+    assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr

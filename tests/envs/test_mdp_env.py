@@ -87,3 +87,36 @@ def test_ansi_render():
     env = pl.MDPEnv(pl.problems.mountain_gridworld(), render_mode="ansi")
     env.reset(seed=0)
     assert env.render() == ".M.\n.MM\nA.G\n"
+
+
+def test_mdp_env_bad_input_is_a_policylab_error():
+    from policylab.envs import MDPEnv
+    from policylab.exceptions import InvalidActionError, InvalidArgumentError
+
+    robot = pl.problems.recycling_robot()
+    with pytest.raises(InvalidArgumentError, match="MDPEnv wraps a FiniteMDP"):
+        MDPEnv("recycling-robot")
+    with pytest.raises(InvalidArgumentError, match="max_steps"):
+        MDPEnv(robot, max_steps=1.5)
+    env = MDPEnv(robot)
+    with pytest.raises(InvalidArgumentError, match="seed must be a non-negative integer"):
+        env.reset(seed=-1)
+    env.reset(seed=0)
+    for bad in ("search", 1.5, True):
+        with pytest.raises(InvalidActionError, match=r"index in Discrete\(3\)"):
+            env.step(bad)
+    env.step(np.array(0))  # a 0-d array (what spaces sample) is an index
+
+
+def test_policy_and_problem_lookup_bad_input():
+    from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
+    from policylab.problems.registry import get_problem
+
+    with pytest.raises(InvalidPolicyError, match="built for a FiniteMDP"):
+        pl.Policy.uniform("recycling-robot")
+    with pytest.raises(InvalidArgumentError, match="takes no parameter 'bogus'"):
+        get_problem("recycling-robot", bogus=1)
+    with pytest.raises(InvalidArgumentError, match="runs in a FiniteMDP or a Gymnasium env"):
+        pl.rollout("robot", pl.Policy.uniform(pl.problems.recycling_robot()))
+    with pytest.raises(pl.exceptions.InvalidMDPError, match="cannot make Gymnasium env"):
+        pl.FiniteMDP.from_gymnasium("NoSuchEnv-v0")

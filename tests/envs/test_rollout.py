@@ -97,3 +97,39 @@ def test_bad_max_steps():
     mdp = pl.problems.slippery_gridworld()
     with pytest.raises(pl.InvalidArgumentError, match="max_steps"):
         pl.rollout(mdp, pl.Policy.uniform(mdp), max_steps=0)
+
+
+def test_rollout_refuses_a_policy_of_another_mdp():
+    grid = pl.problems.mountain_gridworld()
+    other = pl.problems.recycling_robot()
+    with pytest.raises(pl.exceptions.InvalidPolicyError, match="built for another MDP"):
+        pl.rollout(grid, pl.Policy.uniform(other), seed=0)
+    env = pl.envs.MDPEnv(grid)
+    with pytest.raises(pl.exceptions.InvalidPolicyError, match="built for another MDP"):
+        pl.rollout(env, pl.Policy.uniform(other), seed=0)
+    lake = gym.make("FrozenLake-v1")
+    with pytest.raises(pl.exceptions.InvalidPolicyError, match="has 2 states"):
+        pl.rollout(lake, pl.Policy.uniform(other), seed=0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "words"),
+    [
+        ({"seed": -1}, "seed must be a non-negative integer"),
+        ({"seed": 1.5}, "seed must be an integer"),
+        ({"max_steps": 0}, "max_steps"),
+        ({"max_steps": 2.5}, "max_steps"),
+    ],
+)
+def test_rollout_bad_arguments_are_policylab_errors(kwargs, words):
+    mdp = pl.problems.recycling_robot()
+    with pytest.raises(pl.exceptions.InvalidArgumentError, match=words):
+        pl.rollout(mdp, pl.Policy.uniform(mdp), **kwargs)
+
+
+def test_rollout_checks_what_a_policy_function_returns():
+    mdp = pl.problems.recycling_robot()
+    with pytest.raises(pl.exceptions.InvalidActionError, match="expected 0..2"):
+        pl.rollout(mdp, lambda s: 7, seed=0)
+    with pytest.raises(pl.exceptions.InvalidActionError, match="an integer"):
+        pl.rollout(mdp, lambda s: "search", seed=0)

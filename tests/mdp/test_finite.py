@@ -8,7 +8,12 @@ import pytest
 import scipy.sparse as sp
 
 import policylab as pl
-from policylab.exceptions import InvalidMDPError, ShapeError, UnknownLabelError
+from policylab.exceptions import (
+    InvalidArgumentError,
+    InvalidMDPError,
+    ShapeError,
+    UnknownLabelError,
+)
 
 
 def robot_dynamics(alpha: float = 0.7, beta: float = 0.2) -> dict:
@@ -142,8 +147,20 @@ def test_from_gymnasium_cliffwalking():
             exp = {}
             for p, nxt, r, _ in base.P[s][a]:
                 exp[(nxt, r)] = exp.get((nxt, r), 0.0) + p
-            got = {(n, r): p for p, n, r in mdp.outcomes(s, a)}
+            got = {(n, r): p for p, n, r in mdp.outcomes(s, mdp.actions[a])}
             assert got == pytest.approx(exp)
+
+
+def test_from_gymnasium_labels_toy_text_actions_as_gymnasium_documents_them():
+    lake = pl.FiniteMDP.from_gymnasium("FrozenLake-v1")
+    assert lake.actions == ("left", "down", "right", "up")
+    # index order is the env's: action 2 (right) from the start cell of the
+    # non-slippery lake moves to state 1
+    flat = pl.FiniteMDP.from_gymnasium(gym.make("FrozenLake-v1", is_slippery=False))
+    assert flat.outcomes(0, "right") == [(1.0, 1, 0.0)]
+    assert flat.outcomes(0, "down") == [(1.0, 4, 0.0)]
+    assert pl.FiniteMDP.from_gymnasium("CliffWalking-v1").actions == ("up", "right", "down", "left")
+    assert pl.FiniteMDP.from_gymnasium("Taxi-v4").actions[4:] == ("pickup", "dropoff")
 
 
 def test_from_gymnasium_taxi():
@@ -223,9 +240,10 @@ def test_terminal_state_with_outgoing_dynamics():
 
 @pytest.mark.parametrize("gamma", [-0.1, 1.5, float("nan"), "high"])
 def test_gamma_outside_unit_interval(gamma):
-    with pytest.raises(InvalidMDPError, match="gamma must be"):
+    # One check of gamma for every entry point: the same error type and words.
+    with pytest.raises(InvalidArgumentError, match="gamma must be"):
         pl.FiniteMDP.from_dynamics(robot_dynamics(), gamma=gamma)
-    with pytest.raises(InvalidMDPError, match="gamma must be"):
+    with pytest.raises(InvalidArgumentError, match="gamma must be"):
         pl.problems.recycling_robot().with_gamma(gamma)
 
 
@@ -299,3 +317,119 @@ def test_grid_wind_needs_one_value_per_column():
     # the wind of the column the move starts in: right from (1, 1) lands one row up
     out = mdp.outcomes((1, 1), "right")
     assert [o[1] for o in out] == [(0, 2)]
+
+
+def _two_state_arrays():
+    P = np.array([[[0.5, 0.5], [0.0, 1.0]], [[1.0, 0.0], [0.2, 0.8]]])
+    R = np.array([[1.0, 0.0], [0.0, 2.0]])
+    return P, R
+
+
+def test_from_arrays_takes_an_object_array_of_sparse_matrices():
+    # pymdptoolbox's convention: P is a NumPy object array holding A sparse matrices.
+    P, R = _two_state_arrays()
+    obj = np.empty(2, dtype=object)
+    obj[0], obj[1] = sp.csr_matrix(P[0]), sp.csr_matrix(P[1])
+    a = pl.FiniteMDP.from_arrays(obj, R, gamma=0.9)
+    b = pl.FiniteMDP.from_arrays(P, R, gamma=0.9)
+    np.testing.assert_array_equal(a.transition_matrix.toarray(), b.transition_matrix.toarray())
+    np.testing.assert_array_equal(a.expected_reward, b.expected_reward)
+    # rewards as an object array of sparse (A, S, S) matrices too
+    robj = np.empty(2, dtype=object)
+    robj[0], robj[1] = sp.csr_matrix(np.full((2, 2), 3.0)), sp.csr_matrix(np.full((2, 2), -1.0))
+    c = pl.FiniteMDP.from_arrays(obj, robj, gamma=0.9)
+    np.testing.assert_allclose(c.expected_reward, [[3.0, -1.0], [3.0, -1.0]])
+
+
+def test_from_arrays_accepts_float32_stochastic_to_float32_precision():
+    # rows of ten float32 tenths sum to 1 + 1.5e-8 in float64: stochastic in float32
+    P = np.full((2, 10, 10), 0.1, dtype=np.float32)
+    assert abs(P.astype(np.float64).sum(axis=2)[0, 0] - 1.0) > pl.mdp.PROB_TOL
+    mdp = pl.FiniteMDP.from_arrays(P, np.zeros((10, 2)), gamma=0.9)
+    sums = mdp.transition_matrix.sum(axis=1)
+    np.testing.assert_allclose(sums, 1.0, rtol=0, atol=1e-15)  # normalised
+    # float64 keeps its tight tolerance; the message shows the deviation
+    P64 = np.full((1, 2, 2), 0.5)
+    P64[0, 0, 0] += 3e-8
+    with pytest.raises(InvalidMDPError) as err:
+        pl.FiniteMDP.from_arrays(P64, np.zeros((2, 1)))
+    msg = str(err.value)
+    assert "sums to 1.00000003 (off by +3e-08)" in msg and "tolerance 1e-08" in msg
+    # float32 off by more than its precision is refused, with enough digits
+    P32 = np.full((1, 2, 2), 0.5, dtype=np.float32)
+    P32[0, 1, 1] = 0.501
+    with pytest.raises(InvalidMDPError, match=r"s=1, a=0\) sums to 1\.001 \(off by \+0\.001\)"):
+        pl.FiniteMDP.from_arrays(P32, np.zeros((2, 1)))
+
+
+def test_messages_show_numbers_without_numpy_reprs():
+    P, R = _two_state_arrays()
+    P[1, 0, 0] = -0.5
+    with pytest.raises(InvalidMDPError) as err:
+        pl.FiniteMDP.from_arrays(P, R)
+    assert "probability -0.5;" in str(err.value) and "np.float64" not in str(err.value)
+    d = robot_dynamics()
+    d["low"]["search"] = [(0.2, "low", 4.0), (0.73, "high", -3.0)]
+    with pytest.raises(InvalidMDPError, match=r"sums to 0\.93 \(off by -0\.07\)"):
+        pl.FiniteMDP.from_dynamics(d)
+
+
+@pytest.mark.parametrize(
+    ("P", "R", "kwargs", "words"),
+    [
+        (
+            np.array([[["a", "b"], ["c", "d"]]]),
+            np.zeros((2, 1)),
+            {},
+            "P must be an array of real numbers",
+        ),
+        ([[[1.0, 0.0], [0.0, 1.0]]], [["x"], ["y"]], {}, "R must be an array of real numbers"),
+        ([[[1.0, 0.0], [0.0]]], np.zeros((2, 1)), {}, "rows of different lengths"),
+        ([[[1.0, 0.0], [0.0, 1.0]]], np.zeros((2, 1)), {"terminal": ["s1"]}, "terminal must"),
+        ([[[1.0, 0.0], [0.0, 1.0]]], np.zeros((2, 1)), {"initial": ["a", "b"]}, "initial must"),
+        ([[[1.0, 0.0], [0.0, 1.0]]], np.zeros((2, 1)), {"gamma": "0.9"}, "gamma must be"),
+    ],
+)
+def test_from_arrays_bad_input_is_a_policylab_error(P, R, kwargs, words):
+    with pytest.raises(pl.exceptions.PolicylabError, match=words):
+        pl.FiniteMDP.from_arrays(P, R, **kwargs)
+
+
+def test_low_level_step_and_sample_check_indices_and_generator():
+    robot = pl.problems.recycling_robot()
+    rng = np.random.default_rng(0)
+    with pytest.raises(pl.exceptions.InvalidActionError, match=r"state index in \[0, 2\)"):
+        robot.step(99, 0, rng)
+    with pytest.raises(InvalidArgumentError, match="numpy.random.Generator"):
+        robot.step(0, 0, 3)
+    pi = pl.Policy.uniform(robot)
+    with pytest.raises(pl.exceptions.InvalidPolicyError, match="non-terminal state"):
+        pi.sample(99, rng)
+    with pytest.raises(pl.exceptions.InvalidPolicyError, match="numpy.random.Generator"):
+        pi.sample(0, 5)
+
+
+@pytest.mark.parametrize(
+    ("rows", "reward", "kwargs", "words"),
+    [
+        ("S.G", lambda a, b, k: 0.0, {}, "a list of strings, one per row"),
+        ([1, 2], lambda a, b, k: 0.0, {}, "a list of strings"),
+        (["S.G"], 5, {}, "reward must be a function"),
+        (["S.G"], lambda a, b, k: "x", {}, "returned 'x'; it must return a number"),
+        (["S.G"], lambda a, b, k: 0.0, {"wind": ["a", "b", "c"]}, "wind must hold integers"),
+        (["S.G"], lambda a, b, k: 0.0, {"gamma": 3}, "gamma must be in [0, 1]"),
+    ],
+)
+def test_grid_mdp_bad_input_is_a_policylab_error(rows, reward, kwargs, words):
+    from policylab.mdp.grid import grid_mdp
+
+    legend = {"S": "start", ".": "grass", "G": "goal"}
+    with pytest.raises(pl.exceptions.PolicylabError) as err:
+        grid_mdp(rows, legend, reward, **kwargs)
+    assert words in str(err.value)
+
+
+def test_outcomes_with_numpy_numbers_are_written_plainly():
+    with pytest.raises(InvalidMDPError) as err:
+        pl.FiniteMDP.from_dynamics({"a": {"x": [(np.float64(0.5), "a")]}})
+    assert "outcome (0.5, 'a') of" in str(err.value) and "np.float64" not in str(err.value)

@@ -90,3 +90,22 @@ def test_policy_array_bad_shape_and_values(robot):
         pl.Policy.from_array(robot, np.ones((2, 2)) / 2)
     with pytest.raises(InvalidPolicyError, match="finite and >= 0"):
         pl.Policy.from_array(robot, [[1.5, -0.5, 0.0], [0, 0, 1]])
+
+
+def test_deterministic_policy_with_a_list_of_actions_is_a_policy_error(robot):
+    with pytest.raises(InvalidPolicyError, match=r"state 'high' is given \['search'\]"):
+        pl.Policy.deterministic(robot, {"high": ["search"], "low": "recharge"})
+
+
+def test_policy_arrays_of_strings_are_policy_errors(robot):
+    with pytest.raises(InvalidPolicyError, match="array of numbers"):
+        pl.Policy.from_array(robot, [["a", "b", "c"], ["d", "e", "f"]])
+    with pytest.raises(InvalidPolicyError, match="one action index"):
+        pl.Policy.from_actions(robot, ["search", "recharge"])
+
+
+def test_policy_messages_show_numbers_plainly(robot):
+    probs = np.array([[0.5, 0.5, 0.0], [0.3, 0.3, 0.3]])
+    with pytest.raises(InvalidPolicyError) as err:
+        pl.Policy.from_array(robot, probs)
+    assert "sums to 0.9;" in str(err.value) and "np.float64" not in str(err.value)

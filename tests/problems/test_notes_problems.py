@@ -64,3 +64,14 @@ def test_registry_and_unknown_problem():
     assert {"recycling-robot", "mountain-gridworld", "slippery-gridworld"} <= set(names)
     with pytest.raises(pl.UnknownProblemError, match="unknown problem 'nope'.*recycling-robot"):
         pl.problems.get_problem("nope")
+
+
+def test_public_problem_lookup_by_any_spelling():
+    from policylab.exceptions import UnknownProblemError
+    from policylab.problems.registry import find_problem, problem, problem_names
+
+    assert find_problem("Recycling_Robot ").name == "recycling-robot"
+    assert find_problem("no-such") is None
+    assert "recycling-robot" in problem_names() and problem_names() == sorted(problem_names())
+    with pytest.raises(UnknownProblemError, match=r"did you mean 'recycling-robot'\?"):
+        problem("recycling-robt")

@@ -16,8 +16,22 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from policylab.cli.common import console, err_console, fmt_label, print_json
-from policylab.exceptions import InvalidArgumentError, UnknownProblemError
+from policylab.cli.common import (
+    console,
+    emit_table,
+    err_console,
+    fmt_label,
+    print_json,
+    state_action_tables,
+)
+from policylab.exceptions import InvalidArgumentError
+from policylab.tabular.common import MAX_EPISODES
+from policylab.validation import (
+    check_count,
+    check_figure_path,
+    check_seed,
+    did_you_mean,
+)
 
 __all__ = ["register"]
 
@@ -42,33 +56,27 @@ def _resolve(name: str, gamma: float | None, use_env: bool) -> tuple[Any, Any]:
     Gymnasium id without ``P`` gives the env (the general path), with policylab's exact
     model where one is known (Blackjack-v1).
     """
-    import gymnasium as gym
     from gymnasium import spaces
 
-    from policylab.cli.common import load_problem
+    from policylab.cli.common import check_gamma_option, load_problem, make_gym_env
     from policylab.envs import MDPEnv
     from policylab.mdp.finite import FiniteMDP
-    from policylab.problems.registry import _REGISTRY, get_problem
+    from policylab.problems.registry import find_problem, get_problem
 
-    key = name.strip().lower().replace("_", "-")
-    if key in _REGISTRY:
-        mdp = get_problem(key)
+    gamma = check_gamma_option(gamma)
+    spec = find_problem(name)
+    if spec is not None:
+        mdp = spec.builder()
         mdp = mdp if gamma is None else mdp.with_gamma(gamma)
         return (MDPEnv(mdp) if use_env else mdp), mdp
     if name in KNOWN_MODELS:
         model = get_problem(KNOWN_MODELS[name])
         model = model if gamma is None else model.with_gamma(gamma)
-        env = gym.make(name, sab=True) if name == "Blackjack-v1" else gym.make(name)
+        env = make_gym_env(name, sab=True) if name == "Blackjack-v1" else make_gym_env(name)
         return env, model
     if "-v" not in name:
         return load_problem(name, gamma), None  # raises UnknownProblemError with the list
-    try:
-        env = gym.make(name)
-    except Exception as e:  # gymnasium raises its own error types for unknown ids
-        raise UnknownProblemError(
-            f"unknown problem {name!r} ({type(e).__name__}: {e}); known problems: "
-            f"{', '.join(sorted(_REGISTRY))}, or a Gymnasium id"
-        ) from None
+    env = make_gym_env(name)
     if getattr(env.unwrapped, "P", None) is not None:
         mdp = FiniteMDP.from_gymnasium(env, gamma=1.0 if gamma is None else gamma, name=name)
         return (env if use_env else mdp), mdp
@@ -84,16 +92,17 @@ def _resolve(name: str, gamma: float | None, use_env: bool) -> tuple[Any, Any]:
 def _named_policy(problem_name: str, mdp: Any, policy: str | None) -> Any:
     """A problem's registered policy by name, or the uniform policy (None / 'uniform')."""
     from policylab.mdp.policy import Policy
-    from policylab.problems.registry import _REGISTRY
+    from policylab.problems.registry import find_problem
 
     if policy is None or policy == "uniform":
         return None if mdp is None else Policy.uniform(mdp)
-    key = problem_name.strip().lower().replace("_", "-")
-    spec = _REGISTRY.get(key) or _REGISTRY.get(KNOWN_MODELS.get(problem_name, ""))
+    spec = find_problem(problem_name) or find_problem(KNOWN_MODELS.get(problem_name, ""))
     names = sorted(spec.policies) if spec else []
     if spec is None or policy not in spec.policies:
         raise InvalidArgumentError(
-            f"unknown policy {policy!r} for {problem_name!r}; known: uniform"
+            f"unknown policy {policy!r} for {problem_name!r}"
+            + did_you_mean(policy, ["uniform", *names])
+            + "; known: uniform"
             + (", " + ", ".join(names) if names else "")
         )
     return spec.policies[policy](mdp)
@@ -105,26 +114,34 @@ def _show(res: Any, max_rows: int) -> None:
         f"[bold]{res.algorithm}[/] on [bold]{res.problem}[/]: {res.episodes} episodes, "
         f"{res.steps} steps, {res.seconds:.3g} s ({res.params.get('path')} path)"
     )
-    table = Table(title="Learned Q(s, a), V(s) and the greedy policy")
-    table.add_column("state", style="bold")
-    for a in res.actions:
-        table.add_column(f"Q(s, {fmt_label(a)})", justify="right")
-    table.add_column("V(s)", justify="right")
-    table.add_column("greedy", justify="left")
-    shown = 0
+    states: list[str] = []
+    cells: list[list[str]] = []
+    v_col: list[str] = []
+    greedy_col: list[str] = []
     for s, lab in enumerate(res.states):
         if res.terminal[s]:
             continue
-        if shown >= max_rows:
+        if len(states) >= max_rows:
             break
-        cells = [
-            f"{res.q[s, a]:.4f}" if res.action_mask[s, a] else "-" for a in range(len(res.actions))
-        ]
-        v = f"{res.v[s]:.4f}" if res.v is not None else "-"
-        greedy = fmt_label(res.actions[int(np.argmax(res.policy[s]))])
-        table.add_row(fmt_label(lab), *cells, v, greedy)
-        shown += 1
-    console.print(table)
+        states.append(fmt_label(lab))
+        cells.append(
+            [
+                f"{res.q[s, a]:.4f}" if res.action_mask[s, a] else "-"
+                for a in range(len(res.actions))
+            ]
+        )
+        v_col.append(f"{res.v[s]:.4f}" if res.v is not None else "-")
+        greedy_col.append(fmt_label(res.actions[int(np.argmax(res.policy[s]))]))
+    for table in state_action_tables(
+        "Learned Q(s, a), V(s) and the greedy policy",
+        states,
+        [f"Q(s, {fmt_label(a)})" for a in res.actions],
+        cells,
+        {"V(s)": v_col, "greedy": greedy_col},
+        console.width,
+    ):
+        emit_table(table)
+    shown = len(states)
     n_live = int((~res.terminal).sum())
     if n_live > shown:
         console.print(f"[dim]... {n_live - shown} more states (raise --max-rows)[/]")
@@ -148,7 +165,7 @@ def _show(res: Any, max_rows: int) -> None:
             f"{res.error_rms[i]:.4g}",
             "-" if not np.isfinite(share) else f"{100 * share:.1f}%",
         )
-    console.print(curve)
+    emit_table(curve)
 
 
 def _make_command(spec: Any) -> Callable[..., None]:
@@ -157,20 +174,27 @@ def _make_command(spec: Any) -> Callable[..., None]:
     def command(**kw: Any) -> None:
         from policylab.tabular.schedules import Schedule
 
+        # Every option is checked here, before any work: a bad value (or an output that
+        # cannot be written) is refused with its flag's name, not after learning.
         problem_name = kw.pop("problem")
         use_env = kw.pop("env")
-        problem, model = _resolve(problem_name, kw.pop("gamma"), use_env)
         json_out = kw.pop("json_out")
         plot = kw.pop("plot")
-        max_rows = kw.pop("max_rows")
+        plot = None if plot is None else check_figure_path(plot, "--plot")
+        max_rows = check_count(kw.pop("max_rows"), "--max-rows", minimum=0)
         episodes = kw.pop("episodes")
         args: dict[str, Any] = {
-            "episodes": spec.default_episodes if episodes is None else episodes,
-            "seed": kw.pop("seed"),
-            "checkpoints": kw.pop("checkpoints"),
-            "max_steps": kw.pop("max_steps"),
+            "episodes": check_count(
+                spec.default_episodes if episodes is None else episodes,
+                "--episodes",
+                maximum=MAX_EPISODES,
+            ),
+            "seed": check_seed(kw.pop("seed"), "--seed"),
+            "checkpoints": check_count(kw.pop("checkpoints"), "--checkpoints"),
+            "max_steps": check_count(kw.pop("max_steps"), "--max-steps", maximum=MAX_EPISODES),
             "progress": not json_out,
         }
+        problem, model = _resolve(problem_name, kw.pop("gamma"), use_env)
         if model is not None and model is not problem:
             args["model"] = model
         if spec.kind == "prediction":
@@ -246,7 +270,8 @@ def _make_command(spec: Any) -> Callable[..., None]:
             bool,
             False,
             "--json",
-            help="Print one JSON object (the documented JSON contract) instead of tables.",
+            help="Print one JSON object (states, actions, q, v, policy, episodes, steps, "
+            "seconds, episode_returns, error) instead of tables.",
         ),
         _opt(
             "plot",

@@ -11,8 +11,15 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from policylab.cli.common import console, fmt_label, load_problem, print_json
-from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
+from policylab.cli.common import console, emit_table, fmt_label, load_problem, print_json
+from policylab.exceptions import InvalidPolicyError
+from policylab.validation import (
+    check_choice,
+    check_count,
+    check_figure_path,
+    check_positive,
+    did_you_mean,
+)
 
 if TYPE_CHECKING:
     from policylab.mdp.finite import FiniteMDP
@@ -88,6 +95,7 @@ def solve_command(
         value_iteration,
     )
 
+    plot, tol = _check_outputs(plot, max_rows), check_positive(tol, "--tol")
     mdp = load_problem(problem, gamma)
     m = _choice(method, tuple(METHOD_NAMES), "--method")
     with (
@@ -107,7 +115,7 @@ def solve_command(
         print_json({**_payload(mdp, res.v, res.policy), "iterations": int(res.iterations)})
     else:
         _print_summary(mdp, res)
-        console.print(
+        emit_table(
             _solution_table(mdp, res.v, res.policy, f"v_* and pi_* of {mdp.name}", max_rows, res)
         )
     if plot is not None:
@@ -146,6 +154,7 @@ def evaluate_command(
     from policylab.planning import evaluate_policy
 
     how = _choice(method, ("exact", "iterative"), "--method")
+    plot = _check_outputs(plot, max_rows)
     mdp = load_problem(problem, gamma)
     pi = load_policy(mdp, problem, policy)
     res = evaluate_policy(mdp, pi, method=how, return_result=True)
@@ -153,7 +162,7 @@ def evaluate_command(
         print_json(_payload(mdp, res.v, pi))
     else:
         _print_summary(mdp, res)
-        console.print(
+        emit_table(
             _solution_table(
                 mdp, res.v, pi, f"v_pi of policy {policy!r} on {mdp.name}", max_rows, res
             )
@@ -169,19 +178,20 @@ def load_policy(mdp: FiniteMDP, problem: str, spec: str) -> Policy:
         InvalidPolicyError: Unknown name, unreadable file, or labels the MDP lacks.
     """
     from policylab.mdp.policy import Policy
-    from policylab.problems.registry import _REGISTRY
+    from policylab.problems.registry import find_problem
 
     if spec == "uniform":
         return Policy.uniform(mdp)
-    key = problem.strip().lower().replace("_", "-")
-    named = _REGISTRY[key].policies if key in _REGISTRY else {}
+    found = find_problem(problem)
+    named = found.policies if found is not None else {}
     if spec in named:
         return named[spec](mdp)
     path = Path(spec)
     if path.suffix != ".json":
         known = ", ".join(["uniform", *sorted(named)])
         raise InvalidPolicyError(
-            f"unknown policy {spec!r} for {problem!r}; known policies: {known}, or a FILE.json"
+            f"unknown policy {spec!r} for {problem!r}{did_you_mean(spec, ['uniform', *named])}; "
+            f"known policies: {known}, or a FILE.json"
         )
     try:
         table = json.loads(path.read_text())
@@ -219,11 +229,15 @@ def load_policy(mdp: FiniteMDP, problem: str, spec: str) -> Policy:
     return Policy.stochastic(mdp, mapping)
 
 
+def _check_outputs(plot: Path | None, max_rows: int) -> Path | None:
+    """``--plot`` (the figure's path, writable, known suffix) and ``--max-rows``, before work."""
+    check_count(max_rows, "--max-rows", minimum=0)
+    return None if plot is None else check_figure_path(plot, "--plot")
+
+
 def _choice(value: str, allowed: tuple[str, ...], option: str) -> str:
     """Check a choice option here, so that a bad value exits with code 2 and one line."""
-    if value not in allowed:
-        raise InvalidArgumentError(f"{option} must be one of {', '.join(allowed)}; got {value!r}")
-    return value
+    return check_choice(value, allowed, option)
 
 
 def _payload(mdp: FiniteMDP, v: np.ndarray, pi: Policy) -> dict[str, Any]:

@@ -11,6 +11,7 @@ from typing import Annotated
 import typer
 
 from policylab.cli.common import console
+from policylab.validation import check_figure_path
 
 __all__ = ["register"]
 
@@ -36,10 +37,11 @@ plot_app = typer.Typer(
 
 
 def _out_path(out: Path | None, problem: str, kind: str) -> Path:
-    if out is not None:
-        return out
-    safe = problem.replace("/", "_")
-    return Path("runs") / "plots" / f"{safe}-{kind}.png"
+    """The figure's path (``--out`` or the default), checked before anything is drawn."""
+    if out is None:
+        safe = problem.replace("/", "_")
+        out = Path("runs") / "plots" / f"{safe}-{kind}.png"
+    return check_figure_path(out, "--out")
 
 
 @plot_app.command("values")
@@ -74,6 +76,7 @@ def values_command(
     from policylab.planning import action_values, evaluate_policy
     from policylab.plot import save_solution_figure
 
+    target = _out_path(out, problem, f"{policy}-values")
     mdp = load_problem(problem, gamma)
     pi = load_policy(mdp, problem, policy)
     v = evaluate_policy(mdp, pi)
@@ -82,7 +85,7 @@ def values_command(
         mdp,
         v,
         pi,
-        _out_path(out, problem, f"{policy}-values"),
+        target,
         q=qv,
         title=title or f"Policy '{policy}' and its values — {mdp.name} (γ = {mdp.gamma:g})",
     )
@@ -113,13 +116,14 @@ def optimal_command(
     from policylab.planning import value_iteration
     from policylab.plot import save_solution_figure
 
+    target = _out_path(out, problem, "optimal")
     mdp = load_problem(problem, gamma)
     res = value_iteration(mdp)
     path = save_solution_figure(
         mdp,
         res.v,
         res.policy,
-        _out_path(out, problem, "optimal"),
+        target,
         q=res.q if q else None,
         title=title or f"Optimal values v* and policy π* — {mdp.name} (γ = {mdp.gamma:g})",
         ties=True,
@@ -149,8 +153,11 @@ def q_table_command(
     from policylab.cli.common import load_problem
     from policylab.planning import action_values, evaluate_policy, value_iteration
     from policylab.plot import q_table_figure, save_figure
+    from policylab.plot.grid import q_triangles, require_grid
 
+    target = _out_path(out, problem, f"{policy}-q-table")
     mdp = load_problem(problem, gamma)
+    q_triangles(require_grid(mdp, "the Q-table view"), mdp)  # refused before solving
     if policy.strip().lower() == "optimal":
         qv = value_iteration(mdp).q
         what = "q*"
@@ -160,7 +167,7 @@ def q_table_command(
     fig = q_table_figure(
         mdp, qv, title=f"Q-table: {what} — {mdp.name} (γ = {mdp.gamma:g}; bold: greedy action)"
     )
-    path = save_figure(fig, _out_path(out, problem, f"{policy}-q-table"))
+    path = save_figure(fig, target)
     console.print(f"wrote {path}")
 
 

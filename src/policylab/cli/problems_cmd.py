@@ -7,7 +7,15 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from policylab.cli.common import console, fmt_label, load_problem, print_json
+from policylab.cli.common import (
+    console,
+    emit_table,
+    fmt_label,
+    load_problem,
+    print_json,
+    state_action_tables,
+)
+from policylab.validation import check_count
 
 
 def problems_command(
@@ -39,7 +47,7 @@ def problems_command(
     table.add_column("Gymnasium id", style="dim")
     for s in specs:
         table.add_row(s.name, s.description, ", ".join(sorted(s.policies)) or "-", s.gym_id)
-    console.print(table)
+    emit_table(table)
 
 
 def show_command(
@@ -50,6 +58,7 @@ def show_command(
     json_out: Annotated[bool, typer.Option("--json", help="Print JSON instead of tables.")] = False,
 ) -> None:
     """Show a problem: states, actions, A(s), and its dynamics table p(s', r | s, a)."""
+    max_rows = check_count(max_rows, "--max-rows", minimum=0)
     mdp = load_problem(problem)
     if json_out:
         print_json(
@@ -92,7 +101,7 @@ def show_command(
             acts or "-",
             f"{mdp.initial[i]:.3g}",
         )
-    console.print(st)
+    emit_table(st)
     dt = Table(title="One-step dynamics p(s', r | s, a)")
     for col in ("s", "a", "s'", "r", "p(s', r | s, a)"):
         dt.add_column(col, justify="right" if col in ("r", "p(s', r | s, a)") else "left")
@@ -104,22 +113,23 @@ def show_command(
                     break
                 dt.add_row(fmt_label(s), fmt_label(a), fmt_label(n), f"{r:g}", f"{p:.4g}")
                 shown += 1
-    console.print(dt)
+    emit_table(dt)
     if mdp.n_outcomes > shown:
         console.print(f"[dim]... {mdp.n_outcomes - shown} more outcomes (raise --max-rows)[/]")
     rsa = mdp.expected_reward
-    et = Table(title="Expected reward r(s, a) = sum p(s', r | s, a) r")
-    et.add_column("state", style="bold")
-    for a in mdp.actions:
-        et.add_column(fmt_label(a), justify="right")
-    for i, s in enumerate(mdp.states[:max_rows]):
-        if mdp.terminal[i]:
-            continue
-        et.add_row(
-            fmt_label(s),
-            *[f"{rsa[i, j]:.4g}" if mdp.action_mask[i, j] else "-" for j in range(mdp.n_actions)],
-        )
-    console.print(et)
+    live = [i for i in range(min(mdp.n_states, max_rows)) if not mdp.terminal[i]]
+    for table in state_action_tables(
+        "Expected reward r(s, a) = sum p(s', r | s, a) r",
+        [fmt_label(mdp.states[i]) for i in live],
+        [fmt_label(a) for a in mdp.actions],
+        [
+            [f"{rsa[i, j]:.4g}" if mdp.action_mask[i, j] else "-" for j in range(mdp.n_actions)]
+            for i in live
+        ],
+        {},
+        console.width,
+    ):
+        emit_table(table)
     if mdp.grid is not None:
         console.print("[bold]Grid[/] (row 0 at the top):")
         for gr in range(mdp.grid.shape[0]):

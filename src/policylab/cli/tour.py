@@ -17,6 +17,8 @@ from rich.panel import Panel
 from rich.progress import Progress
 
 from policylab.cli.common import console
+from policylab.tabular.common import progress_columns
+from policylab.validation import check_output_dir, check_seed
 
 __all__ = ["TourContext", "tour_command", "tour_section"]
 
@@ -87,6 +89,8 @@ def tour_command(
     seed: Annotated[int, typer.Option(help="Seed of every random part of the tour.")] = 0,
 ) -> None:
     """Walk through the notes' examples and print what they show (the `make demo` job)."""
+    out = check_output_dir(out, "--out")
+    seed = check_seed(seed, "--seed") or 0
     ctx = TourContext(console=console, out_dir=out, quick=quick, seed=seed)
     secs = sections()
     console.print(
@@ -95,7 +99,9 @@ def tour_command(
             f"{len(secs)} sections" + (" (quick mode)" if quick else ""),
         )
     )
-    with Progress(console=console, transient=True) as progress:
+    with Progress(
+        *progress_columns(None), console=console, transient=True, expand=True
+    ) as progress:
         task = progress.add_task("tour", total=len(secs))
         for _, title, fn in secs:
             progress.update(task, description=title)

@@ -10,6 +10,7 @@ from gymnasium import spaces
 
 from policylab.exceptions import InvalidActionError, InvalidArgumentError
 from policylab.mdp.finite import FiniteMDP
+from policylab.validation import check_count, check_seed
 
 __all__ = ["MDPEnv", "make_problem_env"]
 
@@ -45,10 +46,12 @@ class MDPEnv(gym.Env[np.int64, np.int64]):
         invalid_reward: float = 0.0,
         render_mode: str | None = None,
     ) -> None:
-        if max_steps is not None and max_steps <= 0:
+        if not isinstance(mdp, FiniteMDP):
             raise InvalidArgumentError(
-                f"max_steps must be a positive integer or None; got {max_steps}"
+                f"MDPEnv wraps a FiniteMDP; got {type(mdp).__name__} {mdp!r:.60}"
             )
+        if max_steps is not None:
+            max_steps = check_count(max_steps, "max_steps (a positive integer or None)")
         if invalid_action not in ("raise", "stay"):
             raise InvalidArgumentError(
                 f"invalid_action must be 'raise' or 'stay'; got {invalid_action!r}"
@@ -86,7 +89,7 @@ class MDPEnv(gym.Env[np.int64, np.int64]):
 
         ``options={"state": label}`` starts in a given non-terminal state instead.
         """
-        super().reset(seed=seed)
+        super().reset(seed=check_seed(seed))
         if options and "state" in options:
             s = self.mdp.state_index(options["state"])
             if self.mdp.terminal[s]:
@@ -103,6 +106,13 @@ class MDPEnv(gym.Env[np.int64, np.int64]):
             raise InvalidArgumentError("call reset() before step()")
         if self.mdp.terminal[self._state]:
             raise InvalidActionError("the episode has terminated; call reset()")
+        if isinstance(action, np.ndarray) and action.shape == ():
+            action = action.item()
+        if isinstance(action, bool | np.bool_) or not isinstance(action, int | np.integer):
+            raise InvalidActionError(
+                f"action must be an index in Discrete({self.mdp.n_actions}); got "
+                f"{type(action).__name__} {action!r}"
+            )
         a = int(action)
         if not 0 <= a < self.mdp.n_actions:
             raise InvalidActionError(f"action {action!r} is outside Discrete({self.mdp.n_actions})")

@@ -9,14 +9,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from policylab.exceptions import InvalidArgumentError
+from policylab.exceptions import InvalidActionError, InvalidArgumentError, InvalidPolicyError
 from policylab.mdp.finite import FiniteMDP
 from policylab.mdp.policy import Policy
 from policylab.mdp.returns import discounted_return, returns_to_go
+from policylab.validation import Seed, as_generator, check_count
 
 __all__ = ["Episode", "rollout"]
-
-Seed = int | np.random.Generator | None
 
 
 @dataclass(frozen=True)
@@ -91,12 +90,12 @@ def rollout(
     Returns:
         The :class:`Episode`.
     """
-    if max_steps is not None and max_steps <= 0:
-        raise InvalidArgumentError(f"max_steps must be positive or None; got {max_steps}")
-    rng = np.random.default_rng(seed)
+    if max_steps is not None:
+        max_steps = check_count(max_steps, "max_steps (a positive integer or None)")
+    rng = as_generator(seed)
     choose: Callable[[Any], int]
     if isinstance(policy, Policy):
-        pol = policy
+        pol = _policy_for(policy, env_or_mdp)
 
         def choose(s: Any) -> int:
             return pol.sample(int(s), rng)
@@ -122,7 +121,7 @@ def rollout(
             if max_steps is not None and len(actions) >= max_steps:
                 truncated = True
                 break
-            a = int(choose(s))
+            a = _action_index(choose(s), mdp.n_actions)
             s, r, terminated = mdp.step(s, a, rng)
             actions.append(a)
             rewards.append(r)
@@ -130,6 +129,10 @@ def rollout(
         terminated = bool(mdp.terminal[s])
     else:
         env = env_or_mdp
+        if not (hasattr(env, "reset") and hasattr(env, "step")):
+            raise InvalidArgumentError(
+                f"rollout runs in a FiniteMDP or a Gymnasium env; got {type(env).__name__}"
+            )
         env_seed = int(rng.integers(2**31 - 1))
         obs, _ = env.reset(seed=env_seed)
         states.append(int(obs))
@@ -140,7 +143,7 @@ def rollout(
             if max_steps is not None and len(actions) >= max_steps:
                 truncated = True
                 break
-            a = int(choose(obs))
+            a = _action_index(choose(obs), None)
             obs, r, term, trunc, _ = env.step(a)
             actions.append(a)
             rewards.append(float(r))
@@ -157,3 +160,37 @@ def rollout(
         labels[0],
         labels[1],
     )
+
+
+def _policy_for(policy: Policy, env_or_mdp: Any) -> Policy:
+    """The policy, checked to fit the MDP (or the env's MDP, or its Discrete spaces)."""
+    if isinstance(env_or_mdp, FiniteMDP):
+        return policy.check_fits(env_or_mdp)
+    base = getattr(env_or_mdp, "unwrapped", env_or_mdp)
+    m = getattr(base, "mdp", None)
+    if isinstance(m, FiniteMDP):
+        return policy.check_fits(m)
+    for space, n, what in (
+        (getattr(env_or_mdp, "observation_space", None), len(policy.states), "states"),
+        (getattr(env_or_mdp, "action_space", None), len(policy.actions), "actions"),
+    ):
+        size = getattr(space, "n", None)
+        if size is not None and int(size) != n:
+            raise InvalidPolicyError(
+                f"the policy has {n} {what}; the env's {space} has {int(size)}"
+            )
+    return policy
+
+
+def _action_index(a: Any, n_actions: int | None) -> int:
+    """The action a policy function returned, as an index (checked where the count is known)."""
+    if isinstance(a, bool | np.bool_) or not isinstance(a, int | np.integer):
+        raise InvalidActionError(
+            f"the policy function must return an action index (an integer); got "
+            f"{type(a).__name__} {a!r}"
+        )
+    if n_actions is not None and not 0 <= int(a) < n_actions:
+        raise InvalidActionError(
+            f"the policy function returned action index {int(a)}; expected 0..{n_actions - 1}"
+        )
+    return int(a)

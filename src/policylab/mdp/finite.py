@@ -16,8 +16,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import scipy.sparse as sp
 
-from policylab.exceptions import InvalidMDPError, ShapeError, UnknownLabelError
+from policylab.exceptions import (
+    InvalidMDPError,
+    ShapeError,
+    UnknownLabelError,
+)
 from policylab.mdp.grid import GridLayout
+from policylab.validation import check_float_array, check_gamma, check_generator, fmt_number
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -35,14 +40,22 @@ def _fmt(label: Hashable) -> str:
     return repr(label)
 
 
-def _check_gamma(gamma: float) -> float:
-    try:
-        g = float(gamma)
-    except (TypeError, ValueError):
-        raise InvalidMDPError(f"gamma must be a number in [0, 1]; got {gamma!r}") from None
-    if not (0.0 <= g <= 1.0):
-        raise InvalidMDPError(f"gamma must be in [0, 1]; got {gamma!r}")
-    return g
+def _sum_error(state: Hashable, action: Hashable, total: float, tol: float) -> InvalidMDPError:
+    """The error of a pair whose probabilities do not sum to 1, with the deviation shown."""
+    return InvalidMDPError(
+        f"p(. | s={_fmt(state)}, a={_fmt(action)}) sums to {fmt_number(total, near=1.0)} (off by "
+        f"{float(total) - 1.0:+.3g}); each (state, action) must sum to 1 (tolerance {tol:.3g})"
+    )
+
+
+def _fmt_items(x: Any) -> str:
+    """A tuple or list as in a message: its numbers by ``fmt_number`` (no ``np.float64(...)``)."""
+    if isinstance(x, tuple | list):
+        inner = ", ".join(
+            fmt_number(v) if isinstance(v, int | float | np.number) else repr(v) for v in x
+        )
+        return f"({inner}{',' if len(x) == 1 else ''})" if isinstance(x, tuple) else f"[{inner}]"
+    return fmt_number(x) if isinstance(x, int | float | np.number) else repr(x)
 
 
 def _index_of(labels: Sequence[Hashable]) -> dict[Hashable, int]:
@@ -102,7 +115,7 @@ class FiniteMDP:
     # ------------------------------------------------------------------ validation
     def __post_init__(self) -> None:
         S, A = len(self.states), len(self.actions)
-        object.__setattr__(self, "gamma", _check_gamma(self.gamma))
+        object.__setattr__(self, "gamma", check_gamma(self.gamma))
         if S == 0 or A == 0:
             raise InvalidMDPError(
                 f"an MDP needs at least one state and one action; got {S} and {A}"
@@ -148,7 +161,7 @@ class FiniteMDP:
             raise InvalidMDPError(f"initial distribution puts mass on terminal state {bad!r}")
         if abs(init.sum() - 1.0) > PROB_TOL * max(1.0, S**0.5):
             raise InvalidMDPError(
-                f"initial distribution sums to {init.sum():.6g}; it must sum to 1"
+                f"initial distribution sums to {fmt_number(init.sum(), near=1.0)}; it must sum to 1"
             )
         object.__setattr__(self, "initial", init / init.sum())
         for arr in (
@@ -171,13 +184,13 @@ class FiniteMDP:
             s, a = divmod(int(np.searchsorted(self.indptr, k, side="right") - 1), A)
             raise InvalidMDPError(
                 f"p(. | s={_fmt(self.states[s])}, a={_fmt(self.actions[a])}) has probability "
-                f"{float(probs[k])!r}; probabilities must be finite and >= 0"
+                f"{fmt_number(probs[k])}; probabilities must be finite and >= 0"
             )
         if not np.all(np.isfinite(rewards)):
             k = int(np.flatnonzero(~np.isfinite(rewards))[0])
             s, a = divmod(int(np.searchsorted(self.indptr, k, side="right") - 1), A)
             raise InvalidMDPError(
-                f"reward {float(rewards[k])!r} in p(. | s={_fmt(self.states[s])}, "
+                f"reward {fmt_number(rewards[k])} in p(. | s={_fmt(self.states[s])}, "
                 f"a={_fmt(self.actions[a])}) is not finite"
             )
         bad_term = term & (counts.sum(axis=1) > 0)
@@ -205,11 +218,7 @@ class FiniteMDP:
         bad = mask.ravel() & (np.abs(sums - 1.0) > PROB_TOL)
         if np.any(bad):
             s, a = divmod(int(np.flatnonzero(bad)[0]), A)
-            raise InvalidMDPError(
-                f"p(. | s={_fmt(self.states[s])}, a={_fmt(self.actions[a])}) sums to "
-                f"{sums[s * A + a]:.6g}; each (state, action) must sum to 1 "
-                f"(tolerance {PROB_TOL:g})"
-            )
+            raise _sum_error(self.states[s], self.actions[a], sums[s * A + a], PROB_TOL)
 
     # ------------------------------------------------------------------ sizes, labels
     @property
@@ -342,11 +351,17 @@ class FiniteMDP:
         Returns:
             ``(next_state_index, reward, terminated)``.
         """
+        from policylab.exceptions import InvalidActionError
+
+        if not (0 <= s < self.n_states and 0 <= a < self.n_actions):
+            raise InvalidActionError(
+                f"step takes a state index in [0, {self.n_states}) and an action index in "
+                f"[0, {self.n_actions}); got s={s!r}, a={a!r} (labels: state_index, action_index)"
+            )
+        check_generator(rng)
         row = s * self.n_actions + a
         lo, hi = int(self.indptr[row]), int(self.indptr[row + 1])
         if hi == lo:
-            from policylab.exceptions import InvalidActionError
-
             if self.terminal[s]:
                 raise InvalidActionError(
                     f"state {self.states[s]!r} is terminal; no action can be taken"
@@ -370,7 +385,7 @@ class FiniteMDP:
         """The same MDP with another discount rate."""
         from dataclasses import replace
 
-        return replace(self, gamma=_check_gamma(gamma))
+        return replace(self, gamma=check_gamma(gamma))
 
     def __repr__(self) -> str:
         return (
@@ -501,8 +516,8 @@ class FiniteMDP:
                 for out in outs_list:
                     if not isinstance(out, Sequence) or isinstance(out, str) or len(out) != 3:
                         raise InvalidMDPError(
-                            f"outcome {out!r} of p(. | s={s_lab!r}, a={a_lab!r}) must be a triple "
-                            "(probability, next_state, reward)"
+                            f"outcome {_fmt_items(out)} of p(. | s={s_lab!r}, a={a_lab!r}) must "
+                            "be a triple (probability, next_state, reward)"
                         )
                     pr, nxt_lab, r = out
                     try:
@@ -517,8 +532,8 @@ class FiniteMDP:
                         pr_f, r_f = float(pr), float(r)
                     except (TypeError, ValueError):
                         raise InvalidMDPError(
-                            f"outcome {out!r} of p(. | s={s_lab!r}, a={a_lab!r}): probability "
-                            "and reward must be numbers"
+                            f"outcome {_fmt_items(out)} of p(. | s={s_lab!r}, a={a_lab!r}): "
+                            "probability and reward must be numbers"
                         ) from None
                     key = (nxt, r_f)
                     acc[key] = acc.get(key, 0.0) + pr_f
@@ -589,7 +604,7 @@ class FiniteMDP:
             ShapeError: If the shapes do not fit together (the message shows them).
             InvalidMDPError: If a row does not sum to 1, or a value is not finite.
         """
-        mats = _as_matrix_list(P)
+        mats, eps = _as_matrix_list(P)
         A = len(mats)
         if A == 0:
             raise ShapeError("P must hold at least one action; got an empty list")
@@ -604,7 +619,12 @@ class FiniteMDP:
         if action_mask is None:
             mask = np.ones((S, A), dtype=bool)
         else:
-            mask = np.asarray(action_mask, dtype=bool)
+            mask = np.asarray(action_mask)
+            if mask.dtype.kind not in "biu":
+                raise InvalidMDPError(
+                    f"action_mask must be a boolean (S, A) array; got dtype {mask.dtype}"
+                )
+            mask = mask.astype(bool)
             if mask.shape != (S, A):
                 raise ShapeError(
                     f"action_mask has shape {mask.shape}; expected (S, A) = ({S}, {A})"
@@ -648,6 +668,21 @@ class FiniteMDP:
             starts = indptr[np.arange(S) * A + a]
             pos = np.repeat(starts - ip[:-1], np.diff(ip)) + np.arange(len(idx))
             nxt[pos], probs[pos], rewards[pos] = idx, data, rew
+        if eps > 0.0 and K:
+            # Low-precision P (float32): each of a pair's n stored probabilities may be off by
+            # one unit in the last place, so a sum within n * eps of 1 is stochastic to the
+            # precision given; normalise it so the model is stochastic in float64.
+            n_max = int(counts.max())
+            tol = max(PROB_TOL, eps * n_max)
+            sums = _segment_sum(probs, indptr)
+            bad = mask.ravel() & (np.abs(sums - 1.0) > tol)
+            if np.any(bad):
+                s, a = divmod(int(np.flatnonzero(bad)[0]), A)
+                lab_s = states[s] if states is not None and len(states) == S else s
+                lab_a = actions[a] if actions is not None and len(actions) == A else a
+                raise _sum_error(lab_s, lab_a, sums[s * A + a], tol)
+            pos_sums = np.repeat(np.where(sums > 0, sums, 1.0), np.diff(indptr))
+            probs = probs / pos_sums
         st = tuple(states) if states is not None else tuple(range(S))
         ac = tuple(actions) if actions is not None else tuple(range(A))
         if len(st) != S or len(ac) != A:
@@ -656,7 +691,7 @@ class FiniteMDP:
             init = (~term).astype(np.float64)
             init /= max(init.sum(), 1.0)
         else:
-            init = np.asarray(initial, dtype=np.float64)
+            init = _float_array(initial, "initial")
         return cls(
             states=st,
             actions=ac,
@@ -683,7 +718,10 @@ class FiniteMDP:
         reachable from the start is refused as inconsistent; states that cannot be reached
         (Taxi's "already delivered" states) are kept, and there a move into a terminal
         state ends the episode. The start distribution is read from
-        ``initial_state_distrib`` where the env has one (else uniform over S).
+        ``initial_state_distrib`` where the env has one (else uniform over S). Actions
+        keep the env's index order and are labelled with Gymnasium's documented names
+        where known (FrozenLake: left, down, right, up; CliffWalking: up, right, down,
+        left; Taxi: south, north, east, west, pickup, dropoff), else 0..A-1.
 
         Args:
             env: A Gymnasium environment, or an id string for ``gymnasium.make``.
@@ -697,7 +735,12 @@ class FiniteMDP:
             import gymnasium as gym
 
             env_id = env
-            env = gym.make(env_id)
+            try:
+                env = gym.make(env_id)
+            except Exception as e:  # gymnasium raises its own error types for unknown ids
+                raise InvalidMDPError(
+                    f"cannot make Gymnasium env {env_id!r}: {' '.join(str(e).split())}"
+                ) from None
         else:
             spec = getattr(env, "spec", None)
             env_id = getattr(spec, "id", None) or type(env).__name__
@@ -717,8 +760,8 @@ class FiniteMDP:
                 for out in P[s][a]:
                     if len(out) != 4:
                         raise InvalidMDPError(
-                            f"{env_id}: P[{s}][{a}] holds {out!r}; expected (prob, next_state, "
-                            "reward, terminated)"
+                            f"{env_id}: P[{s}][{a}] holds {_fmt_items(out)}; expected (prob, "
+                            "next_state, reward, terminated)"
                         )
                     if out[3]:
                         terminal_set.add(int(out[1]))
@@ -769,14 +812,16 @@ class FiniteMDP:
         initial: Mapping[Hashable, float] | None = None
         if init_arr is not None:
             initial = {s: float(init_arr[s]) for s in order if init_arr[s] > 0}
-        ordered = {s: dynamics[s] for s in order}
-        from policylab.mdp.gym_grid import gym_grid_layout
+        from policylab.mdp.gym_grid import gym_action_labels, gym_grid_layout
+
+        labels = gym_action_labels(base, A)
+        ordered = {s: {labels[a]: outs for a, outs in dynamics[s].items()} for s in order}
 
         return cls.from_dynamics(
             ordered,  # type: ignore[arg-type]
             gamma=gamma,
             terminal=sorted(terminal_set),
-            actions=list(range(A)),
+            actions=labels,
             initial=initial,
             name=name or str(env_id),
             grid=gym_grid_layout(base, S, A),
@@ -827,28 +872,58 @@ def _initial_from(
     return init
 
 
-def _as_matrix_list(P: Any) -> list[Any]:
-    if isinstance(P, np.ndarray) or (not isinstance(P, (list, tuple)) and not sp.issparse(P)):
-        arr = np.asarray(P, dtype=np.float64)
-        if arr.ndim != 3:
-            raise ShapeError(
-                f"P must be (A, S, S) or a list of A S x S matrices; got shape {arr.shape}"
-            )
-        return [arr[a] for a in range(arr.shape[0])]
+def _float_array(x: Any, what: str) -> NDArray[np.float64]:
+    """``x`` as a float64 array, or a policylab error naming ``what`` (no NumPy message)."""
+    return check_float_array(x, what, error=InvalidMDPError)
+
+
+def _eps_of(dtype: Any) -> float:
+    """Machine epsilon of a floating dtype below float64 (0 for float64 and integers)."""
+    dt = np.dtype(dtype)
+    if dt.kind == "f" and dt.itemsize < 8:
+        return float(np.finfo(dt).eps)
+    return 0.0
+
+
+def _is_matrix_sequence(x: Any) -> bool:
+    """A list, a tuple or a 1-D object array (pymdptoolbox's convention) of matrices."""
+    if isinstance(x, np.ndarray):
+        return x.dtype == object and x.ndim == 1
+    return isinstance(x, (list, tuple))
+
+
+def _as_matrix_list(P: Any) -> tuple[list[Any], float]:
+    """The A matrices of P (sparse CSR or dense float64) and the epsilon of P's precision."""
     if sp.issparse(P):
         raise ShapeError(
             "P as one sparse matrix is ambiguous; pass a list of A sparse S x S matrices"
         )
-    mats = []
+    if not _is_matrix_sequence(P) or not any(sp.issparse(m) for m in P):
+        eps = _eps_of(getattr(P, "dtype", np.float64))
+        if _is_matrix_sequence(P):
+            eps = max([eps, *(_eps_of(getattr(m, "dtype", np.float64)) for m in P)])
+        arr = _float_array(P, "P")
+        if arr.ndim != 3:
+            raise ShapeError(
+                f"P must be (A, S, S) or a list of A S x S matrices; got shape {arr.shape}"
+            )
+        return [arr[a] for a in range(arr.shape[0])], eps
+    mats: list[Any] = []
+    eps = 0.0
     for a, m in enumerate(P):
+        eps = max(eps, _eps_of(getattr(m, "dtype", np.float64)))
         if sp.issparse(m):
+            if m.dtype.kind not in "biuf":
+                raise InvalidMDPError(
+                    f"P[{a}] must hold real numbers; got a sparse matrix of dtype {m.dtype}"
+                )
             mats.append(sp.csr_array(m, dtype=np.float64))
         else:
-            arr = np.asarray(m, dtype=np.float64)
+            arr = _float_array(m, f"P[{a}]")
             if arr.ndim != 2:
                 raise ShapeError(f"P[{a}] has shape {arr.shape}; expected an S x S matrix")
             mats.append(arr)
-    return mats
+    return mats, eps
 
 
 def _terminal_mask(terminal: Any, S: int) -> NDArray[np.bool_]:
@@ -861,6 +936,11 @@ def _terminal_mask(terminal: Any, S: int) -> NDArray[np.bool_]:
         return arr.copy()
     mask = np.zeros(S, dtype=bool)
     if arr.size:
+        if arr.dtype.kind not in "iu":
+            raise InvalidMDPError(
+                f"terminal must be a boolean mask ({S},) or a list of state indices; got an "
+                f"array of dtype {arr.dtype} ({arr.ravel()[:5].tolist()!r})"
+            )
         idx = arr.astype(np.int64)
         if idx.min() < 0 or idx.max() >= S:
             raise InvalidMDPError(f"terminal indices must lie in [0, {S}); got {arr.tolist()}")
@@ -869,16 +949,21 @@ def _terminal_mask(terminal: Any, S: int) -> NDArray[np.bool_]:
 
 
 def _reward_arrays(R: Any, S: int, A: int) -> tuple[str, Any]:
-    if isinstance(R, (list, tuple)) and R and (sp.issparse(R[0]) or np.ndim(R[0]) == 2):
+    if _is_matrix_sequence(R) and len(R) and (sp.issparse(R[0]) or np.ndim(R[0]) == 2):
         if len(R) != A or any(np.shape(m) != (S, S) for m in R):
             raise ShapeError(
                 f"R as a list must hold A = {A} matrices of shape ({S}, {S}); got "
                 f"{[np.shape(m) for m in R]}"
             )
         if any(sp.issparse(m) for m in R):
+            for a, m in enumerate(R):
+                if sp.issparse(m) and m.dtype.kind not in "biuf":
+                    raise InvalidMDPError(
+                        f"R[{a}] must hold real numbers; got a sparse matrix of dtype {m.dtype}"
+                    )
             return "sparse", list(R)
-        return "dense", np.stack([np.asarray(m, dtype=np.float64) for m in R])
-    arr = np.asarray(R, dtype=np.float64)
+        return "dense", np.stack([_float_array(m, f"R[{a}]") for a, m in enumerate(R)])
+    arr = _float_array(R, "R")
     if arr.shape == (S, A):
         return "sa", arr
     if arr.shape == (A, S, S):

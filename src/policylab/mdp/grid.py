@@ -117,6 +117,16 @@ def grid_mdp(
     """
     from policylab.mdp.finite import FiniteMDP
 
+    if isinstance(rows, str) or not all(isinstance(r, str) for r in rows):
+        raise InvalidMDPError(f"grid rows must be a list of strings, one per row; got {rows!r:.80}")
+    if not callable(reward):
+        raise InvalidMDPError(
+            f"reward must be a function reward(from_cell, to_cell, kind); got {reward!r:.60}"
+        )
+    if wind is not None and not all(
+        isinstance(w, int | np.integer) and not isinstance(w, bool) for w in wind
+    ):
+        raise InvalidMDPError(f"wind must hold integers (cells pushed up); got {list(wind)!r}")
     if not rows or any(len(r) != len(rows[0]) for r in rows):
         raise InvalidMDPError(
             f"grid rows must be non-empty and of equal length; got {list(rows)!r}"
@@ -172,7 +182,14 @@ def grid_mdp(
             outs = []
             for pr, actual in slip(a) if slip is not None else [(1.0, a)]:
                 to = land(cell, move_list[actual])
-                rew = float(reward(cell, to, kinds[to]))
+                got = reward(cell, to, kinds[to])
+                try:
+                    rew = float(got)
+                except (TypeError, ValueError):
+                    raise InvalidMDPError(
+                        f"reward({cell}, {to}, {kinds[to]!r}) returned {got!r}; it must return "
+                        "a number"
+                    ) from None
                 dest = respawn.get(kinds[to], to)
                 outs.append((float(pr), lab[dest], rew))
             acts[a_lab] = outs

@@ -14,13 +14,34 @@ import numpy as np
 
 from policylab.mdp.grid import Cell, GridLayout
 
-__all__ = ["gym_grid_layout"]
+__all__ = ["gym_action_labels", "gym_grid_layout"]
+
+#: What the actions of Gymnasium's toy-text envs mean, as documented by Gymnasium
+#: (by the unwrapped env's class name).
+_TOY_TEXT_ACTIONS: dict[str, tuple[str, ...]] = {
+    "FrozenLakeEnv": ("left", "down", "right", "up"),
+    "CliffWalkingEnv": ("up", "right", "down", "left"),
+    "TaxiEnv": ("south", "north", "east", "west", "pickup", "dropoff"),
+}
 
 #: FrozenLake's actions 0..3 are left, down, right, up.
 _FROZEN_LAKE_MOVES: tuple[Cell, ...] = ((0, -1), (1, 0), (0, 1), (-1, 0))
 #: CliffWalking's actions 0..3 are up, right, down, left.
 _CLIFF_WALKING_MOVES: tuple[Cell, ...] = ((-1, 0), (0, 1), (1, 0), (0, -1))
 _FROZEN_LAKE_KINDS = {"S": "start", "F": "frozen", "H": "hole", "G": "goal"}
+
+
+def gym_action_labels(base: Any, n_actions: int) -> list[Any]:
+    """Action labels of an unwrapped env: Gymnasium's documented names where known.
+
+    FrozenLake's 0..3 are left, down, right, up; CliffWalking's up, right, down, left;
+    Taxi's south, north, east, west, pickup, dropoff. Any other env keeps 0..A-1. The
+    index order is the env's own either way, so action indices mean the same.
+    """
+    names = _TOY_TEXT_ACTIONS.get(type(base).__name__)
+    if names is not None and len(names) == n_actions:
+        return list(names)
+    return list(range(n_actions))
 
 
 def gym_grid_layout(base: Any, n_states: int, n_actions: int) -> GridLayout | None:

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from policylab.exceptions import InvalidPolicyError, UnknownLabelError
+from policylab.validation import check_float_array, check_generator, fmt_number
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -32,6 +33,7 @@ class Policy:
     __slots__ = ("_probs", "actions", "mask", "states", "terminal")
 
     def __init__(self, mdp: FiniteMDP, probs: NDArray[np.float64]) -> None:
+        _require_mdp(mdp)
         self.states = mdp.states
         self.actions = mdp.actions
         self.terminal = mdp.terminal
@@ -47,7 +49,14 @@ class Policy:
             InvalidPolicyError: If the shape is wrong, a non-terminal row does not sum
                 to 1, or mass lies on an unavailable action.
         """
-        return cls(mdp, np.asarray(probs, dtype=np.float64))
+        _require_mdp(mdp)
+        arr = check_float_array(
+            probs,
+            "policy array",
+            expected=f"an (S, A) = ({mdp.n_states}, {mdp.n_actions}) array of numbers",
+            error=InvalidPolicyError,
+        )
+        return cls(mdp, arr)
 
     @classmethod
     def deterministic(cls, mdp: FiniteMDP, mapping: Mapping[Hashable, Hashable]) -> Policy:
@@ -55,7 +64,17 @@ class Policy:
 
         Example: ``Policy.deterministic(robot, {"low": "recharge", "high": "search"})``.
         """
-        table = {s: {a: 1.0} for s, a in _as_mapping(mapping, "deterministic").items()}
+        table = {}
+        for s, a in _as_mapping(mapping, "deterministic").items():
+            try:
+                hash(a)
+            except TypeError:
+                raise InvalidPolicyError(
+                    f"a deterministic policy maps each state to one action label; state {s!r} "
+                    f"is given {a!r} ({type(a).__name__}); for several actions use "
+                    "Policy.stochastic with {state: {action: probability}}"
+                ) from None
+            table[s] = {a: 1.0}
         return cls.stochastic(mdp, table)
 
     @classmethod
@@ -66,6 +85,7 @@ class Policy:
 
         Every non-terminal state must be given; actions left out get probability 0.
         """
+        _require_mdp(mdp)
         probs = np.zeros((mdp.n_states, mdp.n_actions))
         given = set()
         for s_lab, row in _as_mapping(mapping, "stochastic").items():
@@ -93,6 +113,7 @@ class Policy:
     @classmethod
     def uniform(cls, mdp: FiniteMDP) -> Policy:
         """The equiprobable random policy over A(s) in every non-terminal state."""
+        _require_mdp(mdp)
         m = mdp.action_mask.astype(np.float64)
         n = m.sum(axis=1, keepdims=True)
         return cls(mdp, np.divide(m, n, out=np.zeros_like(m), where=n > 0))
@@ -100,7 +121,16 @@ class Policy:
     @classmethod
     def from_actions(cls, mdp: FiniteMDP, actions: ArrayLike) -> Policy:
         """A deterministic policy from one action index per state (ignored on terminals)."""
-        idx = np.asarray(actions, dtype=np.int64)
+        _require_mdp(mdp)
+        arr = np.asarray(actions)
+        if arr.dtype.kind not in "iu" and not (
+            arr.dtype.kind == "f" and np.all(np.isfinite(arr)) and np.all(arr == np.round(arr))
+        ):
+            raise InvalidPolicyError(
+                f"from_actions takes one action index (an integer) per state; got an array "
+                f"of dtype {arr.dtype}"
+            )
+        idx = arr.astype(np.int64)
         if idx.shape != (mdp.n_states,):
             raise InvalidPolicyError(
                 f"expected {mdp.n_states} action indices; got shape {idx.shape}"
@@ -123,6 +153,26 @@ class Policy:
         """Whether every non-terminal row puts all its mass on one action."""
         live = ~self.terminal
         return bool(np.all(np.isclose(self._probs[live].max(axis=1), 1.0)))
+
+    def check_fits(self, mdp: FiniteMDP, where: str = "policy") -> Policy:
+        """This policy, if it was built for ``mdp`` (same states, actions, A(s)).
+
+        Raises:
+            InvalidPolicyError: Naming both sizes and the first labels of each, so that a
+                policy of one problem passed with another is caught, not mis-indexed.
+        """
+        if self.states != mdp.states or self.actions != mdp.actions:
+            raise InvalidPolicyError(
+                f"{where} was built for another MDP ({len(self.states)} states, actions "
+                f"{list(self.actions)[:8]!r}); MDP {mdp.name!r} has {mdp.n_states} states and "
+                f"actions {list(mdp.actions)[:8]!r}"
+            )
+        if not np.array_equal(self.mask, mdp.action_mask):
+            raise InvalidPolicyError(
+                f"{where} was built for an MDP with other available actions A(s) than "
+                f"MDP {mdp.name!r}"
+            )
+        return self
 
     def action_indices(self) -> NDArray[np.int64]:
         """The most probable action index of each state (-1 for terminal states)."""
@@ -147,6 +197,12 @@ class Policy:
 
     def sample(self, s: int, rng: np.random.Generator) -> int:
         """Draw an action index in state index ``s``."""
+        if not 0 <= s < len(self.states) or self.terminal[s]:
+            raise InvalidPolicyError(
+                f"sample takes the index of a non-terminal state in [0, {len(self.states)}); "
+                f"got {s!r}"
+            )
+        check_generator(rng, error=InvalidPolicyError)
         row = self._probs[s]
         k = int(np.searchsorted(np.cumsum(row), rng.random(), side="right"))
         return min(k, int(np.flatnonzero(row)[-1]))
@@ -177,6 +233,15 @@ class Policy:
         return f"Policy({kind}, states={len(self.states)}, actions={len(self.actions)})"
 
 
+def _require_mdp(mdp: Any) -> None:
+    from policylab.mdp.finite import FiniteMDP
+
+    if not isinstance(mdp, FiniteMDP):
+        raise InvalidPolicyError(
+            f"a policy is built for a FiniteMDP; got {type(mdp).__name__} {mdp!r:.60}"
+        )
+
+
 def _as_mapping(x: Any, what: str) -> Mapping[Any, Any]:
     if not isinstance(x, Mapping):
         raise InvalidPolicyError(
@@ -204,14 +269,14 @@ def _validated(mdp: FiniteMDP, probs: NDArray[np.float64]) -> NDArray[np.float64
     if not np.all(np.isfinite(p)) or np.any(p < 0):
         s, a = map(int, np.argwhere(~np.isfinite(p) | (p < 0))[0])
         raise InvalidPolicyError(
-            f"pi({mdp.actions[a]!r} | {mdp.states[s]!r}) = {p[s, a]!r}; probabilities must be "
-            "finite and >= 0"
+            f"pi({mdp.actions[a]!r} | {mdp.states[s]!r}) = {fmt_number(p[s, a])}; "
+            "probabilities must be finite and >= 0"
         )
     off = live[:, None] & ~mdp.action_mask & (p > POLICY_TOL)
     if np.any(off):
         s, a = map(int, np.argwhere(off)[0])
         raise InvalidPolicyError(
-            f"policy puts probability {p[s, a]:.6g} on action {mdp.actions[a]!r} in state "
+            f"policy puts probability {fmt_number(p[s, a])} on action {mdp.actions[a]!r} in state "
             f"{mdp.states[s]!r}, where it is not available; A({mdp.states[s]!r}) = "
             f"{mdp.available_actions(mdp.states[s])!r}"
         )
@@ -221,7 +286,8 @@ def _validated(mdp: FiniteMDP, probs: NDArray[np.float64]) -> NDArray[np.float64
     if np.any(bad):
         s = int(np.flatnonzero(bad)[0])
         raise InvalidPolicyError(
-            f"pi(. | {mdp.states[s]!r}) sums to {sums[s]:.6g}; each non-terminal row must sum to 1"
+            f"pi(. | {mdp.states[s]!r}) sums to {fmt_number(sums[s], near=1.0)}; each "
+            "non-terminal row must sum to 1"
         )
     p[live] /= sums[live, None]
     p.flags.writeable = False

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from policylab.exceptions import InvalidArgumentError
+from policylab.validation import check_gamma
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -27,10 +28,7 @@ def _rewards_and_gamma(rewards: ArrayLike, gamma: float) -> tuple[NDArray[np.flo
         )
     if not np.all(np.isfinite(r)):
         raise InvalidArgumentError("rewards must be finite")
-    g = float(gamma)
-    if not 0.0 <= g <= 1.0:
-        raise InvalidArgumentError(f"gamma must be in [0, 1]; got {gamma!r}")
-    return r, g
+    return r, check_gamma(gamma)
 
 
 def returns_to_go(rewards: ArrayLike, gamma: float) -> NDArray[np.float64]:

@@ -9,6 +9,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order
 
+from policylab import validation
 from policylab.exceptions import (
     InvalidArgumentError,
     InvalidPolicyError,
@@ -41,15 +42,7 @@ PolicyLike = Policy | Mapping[Any, Any] | Any
 
 def check_gamma(mdp: FiniteMDP, gamma: float | None) -> float:
     """The discount rate to use: ``gamma`` if given (checked to lie in [0, 1]), else the MDP's."""
-    if gamma is None:
-        return float(mdp.gamma)
-    try:
-        g = float(gamma)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError(f"gamma must be a number in [0, 1]; got {gamma!r}") from None
-    if not 0.0 <= g <= 1.0:
-        raise InvalidArgumentError(f"gamma must be in [0, 1]; got {gamma!r}")
-    return g
+    return validation.check_gamma(gamma, mdp.gamma)
 
 
 def check_tol(tol: float, name: str = "tol") -> float:
@@ -64,10 +57,8 @@ def check_tol(tol: float, name: str = "tol") -> float:
 
 
 def check_positive_int(x: int, name: str, minimum: int = 1) -> int:
-    """An integer >= ``minimum`` (bools rejected)."""
-    if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or x < minimum:
-        raise InvalidArgumentError(f"{name} must be an integer >= {minimum}; got {x!r}")
-    return int(x)
+    """An integer >= ``minimum`` (bools rejected): :func:`policylab.validation.check_count`."""
+    return validation.check_count(x, name, minimum)
 
 
 def check_v(mdp: FiniteMDP, v: ArrayLike, name: str = "v") -> NDArray[np.float64]:

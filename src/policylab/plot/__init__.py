@@ -56,6 +56,7 @@ from policylab.plot.states import (
     policy_map_figure,
     small_mdp_figure,
 )
+from policylab.validation import check_figure_path
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -204,11 +205,4 @@ def save_learning_figure(results: Any, path: str | Path, *, title: str | None = 
 
 
 def _check_suffix(path: str | Path) -> None:
-    from policylab.plot._common import FORMATS
-
-    suffix = Path(path).suffix.lower()
-    if suffix and suffix not in FORMATS:
-        raise InvalidArgumentError(
-            f"figure path {str(path)!r} ends in {Path(path).suffix!r}; expected one of "
-            f"{', '.join(FORMATS)} (or no suffix for PNG)"
-        )
+    check_figure_path(path)

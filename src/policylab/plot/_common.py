@@ -17,6 +17,7 @@ from matplotlib.figure import Figure
 
 from policylab.exceptions import InvalidArgumentError, InvalidPolicyError, ShapeError
 from policylab.mdp.policy import Policy
+from policylab.validation import FIGURE_FORMATS, check_figure_path, check_float_array
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -36,7 +37,7 @@ __all__ = [
 ]
 
 #: File formats a figure can be saved in, by suffix.
-FORMATS = (".png", ".svg", ".pdf")
+FORMATS = FIGURE_FORMATS
 
 #: Colour of cells that hold no state (walls) and of unavailable actions.
 BLOCKED = "#4d4d4d"
@@ -58,15 +59,7 @@ def save_figure(fig: Figure, path: str | Path, *, dpi: int = 120) -> Path:
     Raises:
         InvalidArgumentError: If the suffix names another format.
     """
-    p = Path(path)
-    suffix = p.suffix.lower()
-    if suffix == "":
-        p = p.with_suffix(".png")
-    elif suffix not in FORMATS:
-        raise InvalidArgumentError(
-            f"figure path {str(path)!r} ends in {p.suffix!r}; expected one of {', '.join(FORMATS)} "
-            "(or no suffix for PNG)"
-        )
+    p = check_figure_path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(p, dpi=dpi, metadata=_metadata(p))
     return p
@@ -86,13 +79,7 @@ def check_values(mdp: FiniteMDP, v: ArrayLike, what: str = "v") -> NDArray[np.fl
         ShapeError: If the array does not have one entry per state of the MDP.
         InvalidArgumentError: If an entry is not a number or is infinite.
     """
-    try:
-        arr = np.asarray(v, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError(
-            f"{what} must be an array of numbers, one per state of {mdp.name!r}; got "
-            f"{type(v).__name__}"
-        ) from None
+    arr = check_float_array(v, what, expected=f"an array of numbers, one per state of {mdp.name!r}")
     if arr.shape != (mdp.n_states,):
         raise ShapeError(
             f"{what} has shape {arr.shape}; expected ({mdp.n_states},), one value per state of "
@@ -114,12 +101,7 @@ def check_q(mdp: FiniteMDP, q: ArrayLike, what: str = "q") -> NDArray[np.float64
         ShapeError: If the array is not (S, A) for the MDP.
         InvalidArgumentError: If an entry is not a number or is infinite.
     """
-    try:
-        arr = np.asarray(q, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError(
-            f"{what} must be an (S, A) array of numbers for {mdp.name!r}; got {type(q).__name__}"
-        ) from None
+    arr = check_float_array(q, what, expected=f"an (S, A) array of numbers for {mdp.name!r}")
     S, A = mdp.n_states, mdp.n_actions
     if arr.shape != (S, A):
         raise ShapeError(

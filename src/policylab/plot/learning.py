@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from policylab.exceptions import InvalidArgumentError
+from policylab.validation import as_generator, check_count, check_number
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -175,12 +176,12 @@ def bootstrap_ci(
     x = np.asarray(samples, dtype=np.float64)
     if x.ndim != 2 or x.shape[0] < 1:
         raise InvalidArgumentError(f"samples must be (n_runs, n_points); got shape {x.shape}")
-    if not 0.0 < confidence < 1.0:
-        raise InvalidArgumentError(f"confidence must lie in (0, 1); got {confidence!r}")
-    if n_resamples < 1:
-        raise InvalidArgumentError(f"n_resamples must be >= 1; got {n_resamples!r}")
+    confidence = check_number(
+        confidence, "confidence", low=0.0, high=1.0, low_open=True, high_open=True
+    )
+    n_resamples = check_count(n_resamples, "n_resamples")
     n = x.shape[0]
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    rng = as_generator(seed)
     # Each draw is a multinomial count of how often every run was picked, so the means
     # of all draws are one (n_resamples, n) @ (n, n_points) product.
     counts = rng.multinomial(n, np.full(n, 1.0 / n), size=n_resamples).astype(np.float64)

@@ -12,12 +12,22 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from policylab.exceptions import UnknownProblemError
+from policylab.validation import did_you_mean, normalize_name
 
 if TYPE_CHECKING:
     from policylab.mdp.finite import FiniteMDP
     from policylab.mdp.policy import Policy
 
-__all__ = ["ProblemSpec", "get_problem", "list_problems", "problem", "register_problem"]
+__all__ = [
+    "ProblemSpec",
+    "find_problem",
+    "get_problem",
+    "list_problems",
+    "problem",
+    "problem_names",
+    "register_problem",
+    "unknown_problem_message",
+]
 
 
 @dataclass(frozen=True)
@@ -65,25 +75,63 @@ def register_problem(
     return spec
 
 
+def find_problem(name: str) -> ProblemSpec | None:
+    """The spec of a registered problem under any spelling of its name, or None.
+
+    ``"Recycling_Robot"`` finds ``recycling-robot`` (see
+    :func:`policylab.validation.normalize_name`).
+    """
+    return _REGISTRY.get(normalize_name(name)) if isinstance(name, str) else None
+
+
+def problem_names() -> list[str]:
+    """The names of every registered problem, sorted."""
+    return sorted(_REGISTRY)
+
+
+def unknown_problem_message(name: str, extra: str = "") -> str:
+    """The one message for a problem name that is not registered: the closest name, the list."""
+    hint = did_you_mean(normalize_name(name), _REGISTRY) if isinstance(name, str) else ""
+    return f"unknown problem {name!r}{hint}; known problems: {', '.join(problem_names())}{extra}"
+
+
 def problem(name: str) -> ProblemSpec:
     """The spec of a registered problem.
 
     Raises:
-        UnknownProblemError: With the list of known names.
+        UnknownProblemError: With the closest name and the list of known names.
     """
-    key = name.strip().lower().replace("_", "-")
-    if key not in _REGISTRY:
-        raise UnknownProblemError(
-            f"unknown problem {name!r}; known problems: {', '.join(sorted(_REGISTRY))}"
-        )
-    return _REGISTRY[key]
+    spec = find_problem(name)
+    if spec is None:
+        raise UnknownProblemError(unknown_problem_message(name))
+    return spec
 
 
 def get_problem(name: str, **kwargs: Any) -> FiniteMDP:
-    """Build a registered problem by name, passing keyword arguments to its builder."""
-    return problem(name).builder(**kwargs)
+    """Build a registered problem by name, passing keyword arguments to its builder.
+
+    Raises:
+        UnknownProblemError: An unknown name.
+        InvalidArgumentError: A keyword the builder does not take (the message lists those
+            it takes).
+    """
+    import inspect
+
+    from policylab.exceptions import InvalidArgumentError
+
+    spec = problem(name)
+    sig = inspect.signature(spec.builder)
+    try:
+        sig.bind(**kwargs)
+    except TypeError:
+        unknown = sorted(set(kwargs) - set(sig.parameters))
+        raise InvalidArgumentError(
+            f"problem {spec.name!r} takes no parameter {', '.join(map(repr, unknown))}; its "
+            f"parameters are: {', '.join(sig.parameters) or '(none)'}"
+        ) from None
+    return spec.builder(**kwargs)
 
 
 def list_problems() -> list[ProblemSpec]:
     """Every registered problem, sorted by name."""
-    return [_REGISTRY[k] for k in sorted(_REGISTRY)]
+    return [_REGISTRY[k] for k in problem_names()]

@@ -25,7 +25,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from policylab import validation
 from policylab.exceptions import InvalidArgumentError, UnknownLabelError
+from policylab.validation import check_count, check_fraction
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -46,42 +48,24 @@ __all__ = [
     "env_name",
     "is_finite_mdp",
     "progress_bar",
+    "progress_columns",
     "run_seeds",
     "start_state",
 ]
 
-
-def check_count(value: Any, what: str, minimum: int = 1) -> int:
-    """An integer >= ``minimum`` (episodes, seeds, n, planning steps), or an error.
-
-    Raises:
-        InvalidArgumentError: Naming ``what``, the bound and the value given.
-    """
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        bound = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
-        raise InvalidArgumentError(f"{what} must be {bound}; got {value!r}")
-    return int(value)
+MAX_EPISODES = 2**62
+"""Most episodes (or steps per episode) one learner call accepts: the compiled kernels
+count in 64-bit integers."""
 
 
 def check_episodes(episodes: Any, what: str = "episodes") -> int:
     """A positive integer number of episodes, or an InvalidArgumentError."""
-    return check_count(episodes, what)
-
-
-def check_fraction(value: Any, what: str) -> float:
-    """A number in [0, 1] (gamma, lambda), or an InvalidArgumentError naming ``what``."""
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError(f"{what} must be a number in [0, 1]; got {value!r}") from None
-    if not 0.0 <= x <= 1.0:
-        raise InvalidArgumentError(f"{what} must be in [0, 1]; got {value!r}")
-    return x
+    return check_count(episodes, what, maximum=MAX_EPISODES)
 
 
 def check_gamma(gamma: Any, default: float) -> float:
     """Gamma in [0, 1] (None: the problem's own)."""
-    return float(default) if gamma is None else check_fraction(gamma, "gamma")
+    return validation.check_gamma(gamma, default)
 
 
 def checkpoint_episodes(episodes: int, checkpoints: int = 50) -> NDArray[np.int64]:
@@ -90,12 +74,7 @@ def checkpoint_episodes(episodes: int, checkpoints: int = 50) -> NDArray[np.int6
     About ``checkpoints`` of them, spaced evenly on a log scale from 1 to ``episodes``
     (always ending at ``episodes``).
     """
-    if (
-        isinstance(checkpoints, bool)
-        or not isinstance(checkpoints, (int, np.integer))
-        or checkpoints < 1
-    ):
-        raise InvalidArgumentError(f"checkpoints must be a positive integer; got {checkpoints!r}")
+    checkpoints = check_count(checkpoints, "checkpoints")
     pts = np.unique(np.geomspace(1, episodes, num=int(checkpoints)).round().astype(np.int64))
     pts = pts[(pts >= 1) & (pts <= episodes)]
     if len(pts) == 0 or pts[-1] != episodes:
@@ -207,6 +186,38 @@ class Recorder:
         }
 
 
+def progress_columns(unit: str | None = "episodes") -> tuple[Any, ...]:
+    """The columns of every policylab progress bar, made to fit a terminal of 80 columns.
+
+    On a narrow terminal the description gives way (cut with an ellipsis) and the bar
+    shrinks; the count (``n/total unit``, or a percentage when ``unit`` is None) and the
+    elapsed and remaining times keep their full width.
+    """
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.table import Column
+
+    count: tuple[Any, ...] = (
+        (MofNCompleteColumn(), TextColumn(unit)) if unit else (TaskProgressColumn(),)
+    )
+    return (
+        TextColumn(
+            "{task.description}",
+            table_column=Column(ratio=1, no_wrap=True, overflow="ellipsis", min_width=6),
+        ),
+        BarColumn(bar_width=None, table_column=Column(ratio=2)),
+        *count,
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+    )
+
+
 @contextlib.contextmanager
 def progress_bar(enabled: bool, total: int, description: str) -> Iterator[Callable[[int], None]]:
     """A rich progress bar over episodes (to stderr); yields ``advance(n)``."""
@@ -214,22 +225,13 @@ def progress_bar(enabled: bool, total: int, description: str) -> Iterator[Callab
         yield lambda n: None
         return
     from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeRemainingColumn,
-    )
+    from rich.progress import Progress
 
     with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("episodes"),
-        TimeRemainingColumn(),
+        *progress_columns("episodes"),
         console=Console(stderr=True),
         transient=True,
+        expand=True,
     ) as prog:
         task = prog.add_task(description, total=total)
         yield lambda n: prog.advance(task, n)

@@ -67,6 +67,7 @@ from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule, schedule_value
 from policylab.tabular.truth import GroundTruth, greedy_probs
+from policylab.validation import as_generator
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -431,7 +432,7 @@ def _run(
             truth = GroundTruth.control(mdp, on=error_on, gamma=g)
     rec = Recorder(truth, ckpts)
     returns = np.zeros(episodes)
-    gen = np.random.default_rng(seed)
+    gen = as_generator(seed)
     rng = rng_states(gen, 1)[0]
     t0 = time.perf_counter()
     if env is None and mdp is not None:

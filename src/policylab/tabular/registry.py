@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
 from policylab.exceptions import InvalidArgumentError
+from policylab.validation import did_you_mean, normalize_name
 
 if TYPE_CHECKING:
     from policylab.tabular.result import LearnResult
@@ -101,10 +102,11 @@ def algorithm(name: str) -> AlgorithmSpec:
     """
     import policylab.tabular  # noqa: F401  (registers the built-in algorithms)
 
-    key = name.strip().lower().replace("_", "-")
+    key = normalize_name(name)
     if key not in _ALGORITHMS:
         raise InvalidArgumentError(
-            f"unknown algorithm {name!r}; known algorithms: {', '.join(sorted(_ALGORITHMS))}"
+            f"unknown algorithm {name!r}{did_you_mean(key, _ALGORITHMS)}; known algorithms: "
+            f"{', '.join(sorted(_ALGORITHMS))}"
         )
     return _ALGORITHMS[key]
 

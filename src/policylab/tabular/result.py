@@ -121,7 +121,7 @@ class LearnResult:
         return out
 
     def to_json(self) -> dict[str, Any]:
-        """The ``policylab learn --json`` object (the command line's JSON contract)."""
+        """The ``policylab learn --json`` object (the command line's documented JSON output)."""
         return {
             "states": [str(s) for s in self.states],
             "actions": [str(a) for a in self.actions],

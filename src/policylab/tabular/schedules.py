@@ -25,7 +25,7 @@ GLIE (greedy in the limit with infinite exploration).
 from __future__ import annotations
 
 import math
-import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -33,6 +33,7 @@ import numba as nb
 import numpy as np
 
 from policylab.exceptions import InvalidArgumentError
+from policylab.validation import fmt_number
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -100,7 +101,7 @@ class Schedule:
                 float(x)
             ):
                 raise InvalidArgumentError(
-                    f"schedule parameter {name} must be a finite number; got {x!r}"
+                    f"schedule parameter {name} must be a finite number; got {fmt_number(x)}"
                 )
             object.__setattr__(self, name, float(x))
         if self.kind not in _KIND_NAMES:
@@ -117,25 +118,36 @@ class Schedule:
     @classmethod
     def inverse(cls, scale: float = 1.0, power: float = 1.0, floor: float = 0.0) -> Schedule:
         """max(scale / n**power, floor): with the defaults, 1/n (sample average; GLIE)."""
-        if not power > 0.0:
+        if not _number(power, "power") > 0.0:
             raise InvalidArgumentError(
                 f"inverse schedule power must be > 0 (in (0.5, 1] for step sizes that converge); "
-                f"got {power!r}"
+                f"got {fmt_number(power)}"
             )
-        return cls(INVERSE, _number(scale, "scale"), float(power), _number(floor, "floor"))
+        scale = _number(scale, "scale")
+        if scale < 0:
+            raise InvalidArgumentError(
+                f"inverse schedule scale must be >= 0 (the value at n = 1); got {fmt_number(scale)}"
+            )
+        return cls(INVERSE, scale, float(power), _number(floor, "floor"))
 
     @classmethod
     def exponential(cls, start: float, decay: float, floor: float = 0.0) -> Schedule:
         """max(start * decay**(n - 1), floor), with 0 < decay <= 1."""
-        if not 0.0 < decay <= 1.0:
-            raise InvalidArgumentError(f"exponential decay must lie in (0, 1]; got {decay!r}")
+        if not 0.0 < _number(decay, "decay") <= 1.0:
+            raise InvalidArgumentError(
+                f"exponential decay (the second number) must lie in (0, 1] so that the value "
+                f"shrinks; got {fmt_number(decay)}"
+            )
         return cls(EXPONENTIAL, _number(start, "start"), float(decay), _number(floor, "floor"))
 
     @classmethod
     def linear(cls, start: float, end: float, steps: float) -> Schedule:
         """From ``start`` at n = 1 straight to ``end`` at n = 1 + steps, then ``end``."""
-        if not steps > 0:
-            raise InvalidArgumentError(f"linear schedule steps must be > 0; got {steps!r}")
+        if not _number(steps, "steps") > 0:
+            raise InvalidArgumentError(
+                f"linear schedule steps (the third number: how many counts from start to end) "
+                f"must be > 0; got {fmt_number(steps)}"
+            )
         return cls(LINEAR, _number(start, "start"), float(steps), _number(end, "end"))
 
     @classmethod
@@ -150,27 +162,54 @@ class Schedule:
             InvalidArgumentError: If the text is none of these.
         """
         t = str(text).strip().lower().replace(" ", "")
-        try:
-            if re.fullmatch(r"[-+0-9.e]+", t):
-                return cls.constant(float(t))
-            if t in ("1/n", "1/k", "inverse", "glie"):
-                return cls.inverse()
-            kind, _, rest = t.partition(":")
-            nums = [float(x) for x in rest.split(",")] if rest else []
-            if kind in ("const", "constant") and len(nums) == 1:
-                return cls.constant(nums[0])
-            if kind in ("inverse", "inv") and 1 <= len(nums) <= 3:
-                return cls.inverse(*nums)
-            if kind in ("exp", "exponential") and 2 <= len(nums) <= 3:
-                return cls.exponential(*nums)
-            if kind in ("linear", "lin") and len(nums) == 3:
-                return cls.linear(*nums)
-        except ValueError:
-            pass
-        raise InvalidArgumentError(
-            f"cannot read schedule {text!r}; expected a number (constant), '1/n', "
-            "'inverse:SCALE,POWER,FLOOR', 'exp:START,DECAY[,FLOOR]' or 'linear:START,END,STEPS'"
+        forms = (
+            "expected a number (constant), '1/n', 'inverse:SCALE[,POWER[,FLOOR]]', "
+            "'exp:START,DECAY[,FLOOR]' or 'linear:START,END,STEPS'"
         )
+        if t in ("1/n", "1/k", "inverse", "glie"):
+            return cls.inverse()
+        kind, colon, rest = t.partition(":")
+        if not colon:
+            try:
+                value = float(t)
+            except ValueError:
+                raise InvalidArgumentError(f"cannot read schedule {text!r}; {forms}") from None
+            try:
+                return cls.constant(value)
+            except InvalidArgumentError as e:
+                raise InvalidArgumentError(f"schedule {text!r}: {e}") from None
+        arity: dict[str, tuple[int, int, Callable[..., Schedule]]] = {
+            "const": (1, 1, cls.constant),
+            "constant": (1, 1, cls.constant),
+            "inverse": (1, 3, cls.inverse),
+            "inv": (1, 3, cls.inverse),
+            "exp": (2, 3, cls.exponential),
+            "exponential": (2, 3, cls.exponential),
+            "linear": (3, 3, cls.linear),
+            "lin": (3, 3, cls.linear),
+        }
+        if kind not in arity:
+            raise InvalidArgumentError(f"cannot read schedule {text!r}; {forms}")
+        lo, hi, build = arity[kind]
+        parts = rest.split(",") if rest else []
+        if not lo <= len(parts) <= hi:
+            count = str(lo) if lo == hi else f"{lo} to {hi}"
+            raise InvalidArgumentError(
+                f"schedule {text!r} has {len(parts)} number{'' if len(parts) == 1 else 's'}; "
+                f"{kind} takes {count} ({forms})"
+            )
+        nums = []
+        for i, x in enumerate(parts, 1):
+            try:
+                nums.append(float(x))
+            except ValueError:
+                raise InvalidArgumentError(
+                    f"schedule {text!r}: number {i} ({x!r}) is not a number; {forms}"
+                ) from None
+        try:
+            return build(*nums)
+        except InvalidArgumentError as e:
+            raise InvalidArgumentError(f"schedule {text!r}: {e}") from None
 
     # ------------------------------------------------------------------ use
     @property
@@ -193,7 +232,7 @@ class Schedule:
         for x in bounds:
             if not lo <= x <= hi:
                 raise InvalidArgumentError(
-                    f"{what} must stay in [{lo:g}, {hi:g}]; schedule {self} reaches {x:g}"
+                    f"{what} must stay in [{lo:g}, {hi:g}]; schedule {self} reaches {fmt_number(x)}"
                 )
         return self
 
@@ -230,5 +269,5 @@ def _number(x: object, what: str) -> float:
     except (TypeError, ValueError):
         raise InvalidArgumentError(f"schedule {what} must be a number; got {x!r}") from None
     if not math.isfinite(v):
-        raise InvalidArgumentError(f"schedule {what} must be finite; got {x!r}")
+        raise InvalidArgumentError(f"schedule {what} must be finite; got {fmt_number(v)}")
     return v

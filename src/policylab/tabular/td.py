@@ -54,6 +54,7 @@ from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule
 from policylab.tabular.truth import GroundTruth, greedy_probs
+from policylab.validation import as_generator, did_you_mean, normalize_name
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -512,7 +513,7 @@ def _learn(
         elif truth_policy is not None:
             truth = GroundTruth.prediction(P.mdp, truth_policy, on="v", gamma=g)
     rec = Recorder(truth, checkpoint_episodes(episodes, checkpoints))
-    gen = np.random.default_rng(seed)
+    gen = as_generator(seed)
     rng = rng_states(gen, 1)[0]
     env_seed = int(gen.integers(2**31 - 1))
     run = _Run.start(
@@ -668,10 +669,11 @@ def seed_study(
     Returns:
         A :class:`SeedRuns`.
     """
-    name = algorithm.strip().lower().replace("_", "-")
+    name = normalize_name(algorithm)
     if name not in _LEARNERS:
         raise InvalidArgumentError(
-            f"unknown TD algorithm {algorithm!r}; known: {', '.join(sorted(_LEARNERS))}"
+            f"unknown TD algorithm {algorithm!r}{did_you_mean(name, _LEARNERS)}; known: "
+            f"{', '.join(sorted(_LEARNERS))}"
         )
     learner, allowed = _LEARNERS[name]
     unknown = sorted(set(options) - allowed - _COMMON_OPTIONS)
@@ -681,7 +683,7 @@ def seed_study(
     if control and policy is not None:
         raise InvalidArgumentError(f"{name} is a control method; it takes no policy")
     n_runs = check_episodes(seeds, "seeds")
-    seed_list = [int(x) for x in np.random.default_rng(seed).integers(2**63 - 1, size=n_runs)]
+    seed_list = [int(x) for x in as_generator(seed).integers(2**63 - 1, size=n_runs)]
     kwargs = dict(options, episodes=episodes, checkpoints=1)
     if not control:
         kwargs["policy"] = policy

@@ -284,7 +284,7 @@ def one_step_control_kernel(
 
     The step is :func:`~policylab.tabular.kernels.env_step` written out in the loop
     (numba prunes the ``env is None`` branch): the call, with its six array arguments,
-    cost this hottest loop a third of its speed (against a target of 10 M steps/s).
+    cost this hottest loop a third of its speed.
     """
     indptr, next_states, probs, rewards, terminal, initial = model
     n_actions = mask.shape[1]

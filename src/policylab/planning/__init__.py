@@ -18,6 +18,7 @@ from policylab.planning.bellman import (
     optimal_actions,
     policy_reward,
     policy_transition_matrix,
+    proper_actions,
     state_values,
 )
 from policylab.planning.compare import compare_policies
@@ -52,6 +53,7 @@ __all__ = [
     "policy_iteration",
     "policy_reward",
     "policy_transition_matrix",
+    "proper_actions",
     "proper_policy",
     "relative_value_iteration",
     "solve_policy_system",

@@ -18,7 +18,9 @@ __all__ = [
     "gauss_seidel_optimality_sweep",
     "optimality_sweep",
     "policy_matvec",
+    "progressing_actions",
     "q_values",
+    "termination_distances",
 ]
 
 
@@ -243,3 +245,101 @@ def policy_matvec(mdp: Any, actions: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 def _reward(mdp: Any) -> np.ndarray:
     return np.ascontiguousarray(mdp.expected_reward)
+
+
+@njit(cache=True, nogil=True)
+def _termination_distances(
+    indptr: Any, nxt: Any, probs: Any, allowed: Any, terminal: Any
+) -> Any:  # pragma: no cover - compiled
+    # Breadth-first search backwards from the terminal states over the edges s -> s'
+    # with p(s' | s, a) > 0 for an allowed (s, a) (``allowed`` is the flat (S * A,) mask).
+    # The reversed graph is built in CSR form first (counting sort by s').
+    S = terminal.shape[0]
+    A = allowed.shape[0] // S
+    start = np.zeros(S + 1, dtype=np.int64)
+    for row in range(S * A):
+        if allowed[row]:
+            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+                if probs[k] > 0.0:
+                    start[np.uint64(nxt[k]) + 1] += 1
+    for s in range(S):
+        start[s + 1] += start[s]
+    src = np.empty(start[S], dtype=nxt.dtype)
+    fill = start[:S].copy()
+    for row in range(S * A):
+        if allowed[row]:
+            s_from = row // A
+            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+                if probs[k] > 0.0:
+                    j = np.uint64(nxt[k])
+                    src[fill[j]] = s_from
+                    fill[j] += 1
+    dist = np.full(S, -1, dtype=np.int64)
+    queue = np.empty(S, dtype=np.int64)
+    tail = 0
+    for s in range(S):
+        if terminal[s]:
+            dist[s] = 0
+            queue[tail] = s
+            tail += 1
+    head = 0
+    while head < tail:
+        u = queue[head]
+        head += 1
+        for e in range(start[u], start[u + 1]):
+            w = np.int64(src[e])
+            if dist[w] < 0 and not terminal[w]:
+                dist[w] = dist[u] + 1
+                queue[tail] = w
+                tail += 1
+    return dist
+
+
+@njit(cache=True, nogil=True)
+def _progressing_rows(
+    indptr: Any, nxt: Any, probs: Any, allowed: Any, dist: Any, out: Any
+) -> None:  # pragma: no cover - compiled
+    # out[s * A + a]: (s, a) is allowed and can move (p > 0) to a state with a smaller
+    # finite distance than s's own.
+    S = dist.shape[0]
+    A = allowed.shape[0] // S
+    for row in range(S * A):
+        s = row // A
+        ok = False
+        if allowed[row] and dist[s] > 0:
+            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+                d = dist[np.uint64(nxt[k])]
+                if probs[k] > 0.0 and 0 <= d < dist[s]:
+                    ok = True
+                    break
+        out[row] = ok
+
+
+def termination_distances(mdp: Any, allowed: np.ndarray) -> np.ndarray:
+    """d(s): the fewest steps from s to a terminal state using only ``allowed`` actions.
+
+    d(s) = 0 on terminal states, d(s) = 1 + min {d(s') : p(s' | s, a) > 0, a allowed in s}
+    elsewhere, and -1 where no terminal state can be reached that way. One breadth-first
+    search backwards from the terminal states, linear in the number of outcomes.
+
+    Args:
+        mdp: The FiniteMDP.
+        allowed: Boolean (S, A) mask of the actions that may be used.
+    """
+    return np.asarray(
+        _termination_distances(
+            mdp.indptr,
+            mdp.next_states,
+            mdp.probs,
+            np.ascontiguousarray(allowed, dtype=np.bool_).reshape(-1),
+            mdp.terminal,
+        )
+    )
+
+
+def progressing_actions(mdp: Any, allowed: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """The allowed (s, a) that can move to a state with a smaller finite ``dist`` (S, A)."""
+    flat = np.ascontiguousarray(allowed, dtype=np.bool_).reshape(-1)
+    out = np.empty(flat.shape[0], dtype=np.bool_)
+    _progressing_rows(mdp.indptr, mdp.next_states, mdp.probs, flat, dist, out)
+    return out.reshape(mdp.n_states, mdp.n_actions)

@@ -36,7 +36,13 @@ from policylab.planning._kernels import (
     policy_matvec,
 )
 from policylab.planning._sweeps import run_sweeps, span_bounds
-from policylab.planning.bellman import DEFAULT_TIE_TOL, _policy_matrix, _q, greedy_policy
+from policylab.planning.bellman import (
+    DEFAULT_TIE_TOL,
+    _policy_matrix,
+    _q,
+    greedy_policy,
+    proper_actions,
+)
 from policylab.planning.evaluation import _matvec, solve_policy_system
 from policylab.planning.result import PlanningResult
 
@@ -140,7 +146,7 @@ def value_iteration(
     return PlanningResult(
         v=out.v,
         q=q,
-        policy=greedy_policy(mdp, q, tie_tol),
+        policy=greedy_policy(mdp, q, tie_tol, proper=g == 1.0),
         iterations=out.iterations,
         converged=out.converged,
         history=out.history,
@@ -162,36 +168,19 @@ def _one_hot(mdp: FiniteMDP, actions: NDArray[np.int64]) -> NDArray[np.float64]:
 def proper_policy(mdp: FiniteMDP) -> Policy:
     """A deterministic policy that reaches a terminal state with probability 1 from every state.
 
-    Built backwards from the terminal states by breadth-first search: each state takes an
-    action that can move it one step closer to a terminal state, so that from every state
-    some path to termination has positive probability under the policy. Policy iteration
-    starts from it when gamma = 1.
+    Each state takes its first action that can move it, with positive probability, to a
+    state fewer steps from a terminal state (the distances of a breadth-first search
+    backwards from the terminal states; see :func:`proper_actions`). Every step then has
+    a positive probability of getting closer, so termination is certain. Policy
+    iteration starts from it when gamma = 1.
 
     Raises:
         InvalidMDPError: Naming the states from which no policy reaches a terminal state.
     """
-    from scipy.sparse.csgraph import breadth_first_order
-
     _require_episodic(mdp, "an episodic task")
-    S, A = mdp.n_states, mdp.n_actions
-    g = sp.coo_array(_union_graph(mdp))
-    rows = np.concatenate([g.col, np.full(int(mdp.terminal.sum()), S)])
-    cols = np.concatenate([g.row, np.flatnonzero(mdp.terminal)])
-    rev = sp.csr_array((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(S + 1, S + 1))
-    _, pred = breadth_first_order(rev, S, directed=True, return_predecessors=True)
-    live = np.flatnonzero(~mdp.terminal)
-    target = pred[live]  # a next state one step closer to termination
-    tm = mdp.transition_matrix
-    actions = np.full(S, -1, dtype=np.int64)
-    for a in range(A):
-        todo = actions[live] < 0
-        if not todo.any():
-            break
-        hit = np.asarray(tm[live[todo] * A + a, target[todo]]).ravel() > 0
-        sel = live[todo][hit]
-        actions[sel] = a
-    actions[mdp.terminal] = 0
-    return Policy.from_actions(mdp, actions)
+    acts = proper_actions(mdp, mdp.action_mask).argmax(axis=1)
+    acts[mdp.terminal] = 0
+    return Policy.from_actions(mdp, acts.astype(np.int64))
 
 
 def policy_iteration(
@@ -430,7 +419,7 @@ def modified_policy_iteration(
     return PlanningResult(
         v=v,
         q=q,
-        policy=greedy_policy(mdp, q, tie_tol),
+        policy=greedy_policy(mdp, q, tie_tol, proper=g == 1.0),
         iterations=len(history),
         converged=converged,
         history=np.asarray(history),

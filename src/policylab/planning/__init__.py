@@ -5,9 +5,10 @@ evaluation (exact and iterative), comparison of policies, and the solvers of the
 Bellman optimality equation: value iteration (synchronous and Gauss-Seidel), policy
 iteration, modified policy iteration, linear programming, finite-horizon backward
 induction and relative value iteration (average reward). Every solver returns a
-:class:`PlanningResult`.
+:class:`PlanningResult`; :func:`solve` runs one by name or picks one (``"auto"``).
 """
 
+from policylab.planning.auto import METHODS, choose_method, solve
 from policylab.planning.bellman import (
     DEFAULT_TIE_TOL,
     action_values,
@@ -38,11 +39,13 @@ from policylab.planning.special import (
 
 __all__ = [
     "DEFAULT_TIE_TOL",
+    "METHODS",
     "PlanningResult",
     "action_values",
     "backward_induction",
     "bellman_expectation_backup",
     "bellman_optimality_backup",
+    "choose_method",
     "compare_policies",
     "evaluate_policy",
     "greedy_actions",
@@ -56,6 +59,7 @@ __all__ = [
     "proper_actions",
     "proper_policy",
     "relative_value_iteration",
+    "solve",
     "solve_policy_system",
     "state_values",
     "value_iteration",

@@ -23,7 +23,9 @@ __all__ = ["evaluate_command", "load_policy", "register", "solve_command"]
 
 
 METHOD_NAMES = {
+    "auto": "the method that suits the problem",
     "vi": "value iteration",
+    "vi-gs": "value iteration (Gauss-Seidel, terminal states first)",
     "pi": "policy iteration",
     "mpi": "modified policy iteration",
     "lp": "linear programming (HiGHS)",
@@ -64,11 +66,13 @@ def solve_command(
         str,
         typer.Option(
             "--method",
-            help="vi: value iteration (MacQueen's stopping bound); pi: policy iteration "
-            "(exact sparse evaluation); mpi: modified policy iteration; lp: linear "
-            "programming with HiGHS.",
+            help="auto (default): chosen from the problem's size, gamma and structure, "
+            "reported with the reason; vi: value iteration (MacQueen's stopping bound); "
+            "vi-gs: in-place sweeps from the terminal states backwards; pi: policy "
+            "iteration (exact sparse evaluation); mpi: modified policy iteration; lp: "
+            "linear programming with HiGHS.",
         ),
-    ] = "pi",
+    ] = "auto",
     gamma: GammaOpt = None,
     tol: Annotated[
         float,
@@ -81,12 +85,7 @@ def solve_command(
     max_rows: RowsOpt = 60,
 ) -> None:
     """Solve a problem exactly: optimal values v_* and an optimal policy pi_*."""
-    from policylab.planning import (
-        linear_programming,
-        modified_policy_iteration,
-        policy_iteration,
-        value_iteration,
-    )
+    from policylab.planning import solve
 
     mdp = load_problem(problem, gamma)
     m = _choice(method, tuple(METHOD_NAMES), "--method")
@@ -95,18 +94,15 @@ def solve_command(
         if not json_out
         else nullcontext()
     ):
-        if m == "vi":
-            res = value_iteration(mdp, tol=tol)
-        elif m == "mpi":
-            res = modified_policy_iteration(mdp, tol=tol)
-        elif m == "lp":
-            res = linear_programming(mdp)
-        else:
-            res = policy_iteration(mdp)
+        res = solve(mdp, m, tol=tol)
     if json_out:
         print_json({**_payload(mdp, res.v, res.policy), "iterations": int(res.iterations)})
     else:
         _print_summary(mdp, res)
+        if "auto" in res.info:
+            console.print(
+                f"method auto chose {res.info['auto']['method']}: {res.info['auto']['reason']}"
+            )
         console.print(
             _solution_table(mdp, res.v, res.policy, f"v_* and pi_* of {mdp.name}", max_rows, res)
         )
@@ -116,7 +112,7 @@ def solve_command(
             res.v,
             res.policy,
             plot,
-            f"{mdp.name}: optimal values and policy ({METHOD_NAMES[m]})",
+            f"{mdp.name}: optimal values and policy ({res.method})",
             json_out=json_out,
             ties=True,
         )
@@ -153,6 +149,10 @@ def evaluate_command(
         print_json(_payload(mdp, res.v, pi))
     else:
         _print_summary(mdp, res)
+        if "auto" in res.info:
+            console.print(
+                f"method auto chose {res.info['auto']['method']}: {res.info['auto']['reason']}"
+            )
         console.print(
             _solution_table(
                 mdp, res.v, pi, f"v_pi of policy {policy!r} on {mdp.name}", max_rows, res

@@ -185,14 +185,9 @@ def random_mdp(
         seed: Seed or generator (same seed, same MDP).
         gamma: Discount rate.
     """
-    for name, x in (
-        ("n_states", n_states),
-        ("n_actions", n_actions),
-        ("n_successors", n_successors),
-    ):
-        if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or x < 1:
-            raise InvalidArgumentError(f"{name} must be an integer >= 1; got {x!r}")
-    S, A, K = int(n_states), int(n_actions), int(n_successors)
+    S = _check_count("n_states", n_states, 1)
+    A = _check_count("n_actions", n_actions, 1)
+    K = _check_count("n_successors", n_successors, 1)
     if K > S:
         raise InvalidArgumentError(f"n_successors ({K}) cannot exceed n_states ({S})")
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)

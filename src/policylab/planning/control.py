@@ -28,6 +28,7 @@ from policylab.planning._checks import (
     check_positive_int,
     check_tol,
     check_v,
+    raise_if_stuck,
     require_terminal_reachable,
 )
 from policylab.planning._kernels import (
@@ -60,15 +61,6 @@ def _masked_reward(mdp: FiniteMDP) -> NDArray[np.float64]:
     return np.where(mdp.action_mask, mdp.expected_reward, -np.inf)
 
 
-def _union_graph(mdp: FiniteMDP) -> sp.csr_array:
-    """S x S graph with an edge s -> s' when some available action can lead there."""
-    S, A = mdp.n_states, mdp.n_actions
-    agg = sp.csr_array(
-        (np.ones(S * A), (np.repeat(np.arange(S), A), np.arange(S * A))), shape=(S, S * A)
-    )
-    return sp.csr_array(agg @ mdp.transition_matrix)
-
-
 def _all_reach_terminal(mdp: FiniteMDP) -> bool:
     """Whether every state can reach a terminal state under some policy."""
     return bool((termination_distances(mdp, mdp.action_mask) >= 0).all())
@@ -76,9 +68,8 @@ def _all_reach_terminal(mdp: FiniteMDP) -> bool:
 
 def _require_episodic(mdp: FiniteMDP, what: str) -> None:
     """Gamma = 1: every state must be able to reach a terminal state under some policy."""
-    require_terminal_reachable(
-        mdp, _union_graph(mdp), f"{what} (under any policy)", InvalidMDPError
-    )
+    stuck = np.flatnonzero(termination_distances(mdp, mdp.action_mask) < 0)
+    raise_if_stuck(mdp, stuck, f"{what} (under any policy)", InvalidMDPError)
 
 
 def value_iteration(

@@ -295,7 +295,7 @@ def worker(lib: str, fam: str, out: str) -> None:
             term = np.flatnonzero(mdp.terminal)
             P = []
             for a in range(A):
-                m = sp.lil_matrix(mdp.transitions(a))
+                m = sp.lil_matrix(mdp.transitions(mdp.actions[a]))
                 for t in term:
                     m[t, t] = 1.0
                 P.append(sp.csr_matrix(m))

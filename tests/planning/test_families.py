@@ -103,6 +103,8 @@ def test_ordered_sweeps_are_few_on_episodic_tasks() -> None:
         pl.value_iteration(mdp, gauss_seidel=True, order=np.zeros(mdp.n_states, dtype=int))
     with pytest.raises(InvalidArgumentError, match="order must be"):
         pl.value_iteration(mdp, gauss_seidel=True, order="backwards")
+    with pytest.raises(InvalidArgumentError, match="gauss_seidel=True"):
+        pl.value_iteration(mdp, order="index")
 
 
 def test_family_builders_check_their_arguments() -> None:

@@ -131,6 +131,10 @@ def value_iteration(
     check_positive_int(max_iter, "max_iter")
     if g == 1.0:
         _require_episodic(mdp, "value iteration")
+    if not gauss_seidel and not (isinstance(order, str) and order == "auto"):
+        raise InvalidArgumentError(
+            "order applies to in-place sweeps only; pass gauss_seidel=True with it"
+        )
     sweep_order = _sweep_order(mdp, order) if gauss_seidel else None
     if v0 is not None:
         start = check_v(mdp, v0, "v0").copy()

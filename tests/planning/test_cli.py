@@ -18,7 +18,7 @@ def run(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
     return int(e.value.code or 0), out.out, out.err
 
 
-@pytest.mark.parametrize("method", ["vi", "pi", "mpi", "lp"])
+@pytest.mark.parametrize("method", ["auto", "vi", "vi-gs", "pi", "mpi", "lp"])
 def test_solve_json_contract(capsys: pytest.CaptureFixture[str], method: str) -> None:
     code, out, _ = run(capsys, "solve", "recycling-robot", "--method", method, "--json")
     assert code == 0
@@ -29,6 +29,22 @@ def test_solve_json_contract(capsys: pytest.CaptureFixture[str], method: str) ->
     assert data["v"] == pytest.approx([31.496063, 28.346457], abs=1e-5)
     assert data["policy"] == {"high": {"search": 1.0}, "low": {"recharge": 1.0}}
     assert isinstance(data["iterations"], int)
+
+
+def test_solve_defaults_to_auto_and_says_what_it_chose(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code, out, _ = run(capsys, "solve", "gridworld-4x4")
+    assert code == 0
+    assert "auto chose pi" in " ".join(out.split())
+    assert "episodic task with gamma = 1" in " ".join(out.split())
+    code, out, _ = run(capsys, "solve", "slip-gridworld", "--json")
+    # 98 successful moves from the corner; each costs 1 / (1 - 0.1 g) in expectation
+    # and carries the discount b = 0.9 g / (1 - 0.1 g).
+    g = 0.99
+    b = 0.9 * g / (1 - 0.1 * g)
+    want = -(1 - b**98) / (1 - b) / (1 - 0.1 * g)
+    assert code == 0 and json.loads(out)["v"][0] == pytest.approx(want, abs=1e-6)
 
 
 def test_solve_tables_gamma_and_gym_ids(capsys: pytest.CaptureFixture[str]) -> None:

@@ -30,7 +30,9 @@ __all__ = ["evaluate_command", "load_policy", "register", "solve_command"]
 
 
 METHOD_NAMES = {
+    "auto": "the method that suits the problem",
     "vi": "value iteration",
+    "vi-gs": "value iteration (Gauss-Seidel, terminal states first)",
     "pi": "policy iteration",
     "mpi": "modified policy iteration",
     "lp": "linear programming (HiGHS)",
@@ -71,11 +73,13 @@ def solve_command(
         str,
         typer.Option(
             "--method",
-            help="vi: value iteration (MacQueen's stopping bound); pi: policy iteration "
-            "(exact sparse evaluation); mpi: modified policy iteration; lp: linear "
-            "programming with HiGHS.",
+            help="auto (default): chosen from the problem's size, gamma and structure, "
+            "reported with the reason; vi: value iteration (MacQueen's stopping bound); "
+            "vi-gs: in-place sweeps from the terminal states backwards; pi: policy "
+            "iteration (exact sparse evaluation); mpi: modified policy iteration; lp: "
+            "linear programming with HiGHS.",
         ),
-    ] = "pi",
+    ] = "auto",
     gamma: GammaOpt = None,
     tol: Annotated[
         float,
@@ -88,12 +92,7 @@ def solve_command(
     max_rows: RowsOpt = 60,
 ) -> None:
     """Solve a problem exactly: optimal values v_* and an optimal policy pi_*."""
-    from policylab.planning import (
-        linear_programming,
-        modified_policy_iteration,
-        policy_iteration,
-        value_iteration,
-    )
+    from policylab.planning import solve
 
     plot, tol = _check_outputs(plot, max_rows), check_positive(tol, "--tol")
     mdp = load_problem(problem, gamma)
@@ -103,14 +102,7 @@ def solve_command(
         if not json_out
         else nullcontext()
     ):
-        if m == "vi":
-            res = value_iteration(mdp, tol=tol)
-        elif m == "mpi":
-            res = modified_policy_iteration(mdp, tol=tol)
-        elif m == "lp":
-            res = linear_programming(mdp)
-        else:
-            res = policy_iteration(mdp)
+        res = solve(mdp, m, tol=tol)
     if json_out:
         print_json({**_payload(mdp, res.v, res.policy), "iterations": int(res.iterations)})
     else:
@@ -124,7 +116,7 @@ def solve_command(
             res.v,
             res.policy,
             plot,
-            f"{mdp.name}: optimal values and policy ({METHOD_NAMES[m]})",
+            f"{mdp.name}: optimal values and policy ({res.method})",
             json_out=json_out,
             ties=True,
         )
@@ -257,6 +249,9 @@ def _print_summary(mdp: FiniteMDP, res: PlanningResult) -> None:
         f"{res.gamma:g}. {res.method}: {state} in {res.iterations} iterations, "
         f"{res.seconds:.3g} s; error bound on v: {bound}"
     )
+    if "auto" in res.info:
+        auto = res.info["auto"]
+        console.print(f"method auto chose {auto['method']}: {auto['reason']}")
 
 
 def _solution_table(

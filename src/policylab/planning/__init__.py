@@ -5,9 +5,10 @@ evaluation (exact and iterative), comparison of policies, and the solvers of the
 Bellman optimality equation: value iteration (synchronous and Gauss-Seidel), policy
 iteration, modified policy iteration, linear programming, finite-horizon backward
 induction and relative value iteration (average reward). Every solver returns a
-:class:`PlanningResult`.
+:class:`PlanningResult`; :func:`solve` runs one by name or picks one (``"auto"``).
 """
 
+from policylab.planning.auto import METHODS, choose_method, solve
 from policylab.planning.bellman import (
     DEFAULT_TIE_TOL,
     action_values,
@@ -18,6 +19,7 @@ from policylab.planning.bellman import (
     optimal_actions,
     policy_reward,
     policy_transition_matrix,
+    proper_actions,
     state_values,
 )
 from policylab.planning.compare import compare_policies
@@ -37,11 +39,13 @@ from policylab.planning.special import (
 
 __all__ = [
     "DEFAULT_TIE_TOL",
+    "METHODS",
     "PlanningResult",
     "action_values",
     "backward_induction",
     "bellman_expectation_backup",
     "bellman_optimality_backup",
+    "choose_method",
     "compare_policies",
     "evaluate_policy",
     "greedy_actions",
@@ -52,8 +56,10 @@ __all__ = [
     "policy_iteration",
     "policy_reward",
     "policy_transition_matrix",
+    "proper_actions",
     "proper_policy",
     "relative_value_iteration",
+    "solve",
     "solve_policy_system",
     "state_values",
     "value_iteration",

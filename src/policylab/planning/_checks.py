@@ -31,6 +31,7 @@ __all__ = [
     "check_tol",
     "check_v",
     "labels_of",
+    "raise_if_stuck",
     "require_terminal_reachable",
     "states_not_reaching_terminal",
 ]
@@ -160,7 +161,13 @@ def require_terminal_reachable(
     mdp: FiniteMDP, graph: sp.csr_array, what: str, error: type[ValueError] = InvalidPolicyError
 ) -> None:
     """Raise ``error`` if some state cannot reach a terminal state in ``graph`` (gamma = 1)."""
-    bad = states_not_reaching_terminal(mdp, graph)
+    raise_if_stuck(mdp, states_not_reaching_terminal(mdp, graph), what, error)
+
+
+def raise_if_stuck(
+    mdp: FiniteMDP, bad: NDArray[np.int64], what: str, error: type[ValueError] = InvalidPolicyError
+) -> None:
+    """Raise ``error`` naming the states ``bad`` that never reach a terminal state (gamma = 1)."""
     if len(bad):
         hint = (
             "the MDP has no terminal state (a continuing task)"

@@ -18,7 +18,9 @@ __all__ = [
     "gauss_seidel_optimality_sweep",
     "optimality_sweep",
     "policy_matvec",
+    "progressing_actions",
     "q_values",
+    "termination_distances",
 ]
 
 
@@ -28,25 +30,43 @@ _FAST = {"reassoc", "contract", "arcp", "nsz"}
 
 @njit(cache=True, nogil=True)
 def _gs_optimality(
-    indptr: Any, nxt: Any, probs: Any, R: Any, mask: Any, terminal: Any, gamma: float, v: Any
+    indptr: Any,
+    nxt: Any,
+    probs: Any,
+    R: Any,
+    mask: Any,
+    terminal: Any,
+    gamma: float,
+    v: Any,
+    order: Any,
 ) -> float:  # pragma: no cover - compiled
-    # R and mask are the flat (S * A,) views. A state's A row sums go to a small buffer
-    # with no branch, then a branch-free max: a mispredicted "if val > best" between the
-    # rows would stall the loads of the next ones (about 1.7x slower at 10^4 states).
+    # R and mask are the flat (S * A,) views; states are visited in ``order``. The
+    # self-loop of each (s, a) is solved exactly: q = (r + gamma sum_{s' != s} p v(s'))
+    # / (1 - gamma p(s | s, a)), the fixed point of that action's own backup at s.
     S = terminal.shape[0]
     A = R.shape[0] // S
     qs = np.empty(A)
     delta = 0.0
-    row = 0
-    for s in range(S):
-        for a in range(A):
-            acc = 0.0
-            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
-                acc += probs[k] * v[np.uint64(nxt[k])]
-            qs[a] = R[row] + gamma * acc if mask[row] else -np.inf
-            row += 1
+    for i in range(order.shape[0]):
+        s = order[i]
         if terminal[s]:
             continue
+        for a in range(A):
+            row = s * A + a
+            acc = 0.0
+            stay = 0.0
+            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+                j = nxt[k]
+                if j == s:
+                    stay += probs[k]
+                else:
+                    acc += probs[k] * v[np.uint64(j)]
+            den = 1.0 - gamma * stay
+            if den > 1e-12:
+                q = (R[row] + gamma * acc) / den
+            else:  # a pure self-loop at gamma = 1: the plain backup
+                q = R[row] + gamma * (acc + stay * v[s])
+            qs[a] = q if mask[row] else -np.inf
         best = qs[0]
         for a in range(1, A):
             best = max(best, qs[a])
@@ -81,11 +101,20 @@ def _gs_expectation(
     return delta
 
 
-def gauss_seidel_optimality_sweep(mdp: Any, gamma: float, v: np.ndarray) -> float:
-    """One in-place sweep v(s) <- max_a [r(s, a) + gamma sum_s' p(s'|s, a) v(s')], s = 0..S-1.
+def gauss_seidel_optimality_sweep(
+    mdp: Any, gamma: float, v: np.ndarray, order: np.ndarray | None = None
+) -> float:
+    """One in-place sweep v(s) <- max_a q(s, a) over the states in ``order`` (default 0..S-1).
 
-    Later states already see the new values of earlier ones. Returns max_s |change|.
+    q(s, a) = [r(s, a) + gamma sum_{s' != s} p(s'|s, a) v(s')] / (1 - gamma p(s|s, a)):
+    the backup with its self-loop solved exactly (where 1 - gamma p(s|s, a) > 0), whose
+    fixed point is v_* as well: with v = v_* it equals q_*(s, a) for an optimal a and
+    is at most v_*(s) for the others. Later states already see the new values of
+    earlier ones. The sweep is a gamma-contraction in the sup norm, whatever the order.
+    Returns max_s |change|.
     """
+    if order is None:
+        order = np.arange(mdp.n_states, dtype=np.int64)
     return float(
         _gs_optimality(
             mdp.indptr,
@@ -96,6 +125,7 @@ def gauss_seidel_optimality_sweep(mdp: Any, gamma: float, v: np.ndarray) -> floa
             mdp.terminal,
             gamma,
             v,
+            np.ascontiguousarray(order, dtype=np.int64),
         )
     )
 
@@ -243,3 +273,101 @@ def policy_matvec(mdp: Any, actions: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 def _reward(mdp: Any) -> np.ndarray:
     return np.ascontiguousarray(mdp.expected_reward)
+
+
+@njit(cache=True, nogil=True)
+def _termination_distances(
+    indptr: Any, nxt: Any, probs: Any, allowed: Any, terminal: Any
+) -> Any:  # pragma: no cover - compiled
+    # Breadth-first search backwards from the terminal states over the edges s -> s'
+    # with p(s' | s, a) > 0 for an allowed (s, a) (``allowed`` is the flat (S * A,) mask).
+    # The reversed graph is built in CSR form first (counting sort by s').
+    S = terminal.shape[0]
+    A = allowed.shape[0] // S
+    start = np.zeros(S + 1, dtype=np.int64)
+    for row in range(S * A):
+        if allowed[row]:
+            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+                if probs[k] > 0.0:
+                    start[np.uint64(nxt[k]) + 1] += 1
+    for s in range(S):
+        start[s + 1] += start[s]
+    src = np.empty(start[S], dtype=nxt.dtype)
+    fill = start[:S].copy()
+    for row in range(S * A):
+        if allowed[row]:
+            s_from = row // A
+            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+                if probs[k] > 0.0:
+                    j = np.uint64(nxt[k])
+                    src[fill[j]] = s_from
+                    fill[j] += 1
+    dist = np.full(S, -1, dtype=np.int64)
+    queue = np.empty(S, dtype=np.int64)
+    tail = 0
+    for s in range(S):
+        if terminal[s]:
+            dist[s] = 0
+            queue[tail] = s
+            tail += 1
+    head = 0
+    while head < tail:
+        u = queue[head]
+        head += 1
+        for e in range(start[u], start[u + 1]):
+            w = np.int64(src[e])
+            if dist[w] < 0 and not terminal[w]:
+                dist[w] = dist[u] + 1
+                queue[tail] = w
+                tail += 1
+    return dist
+
+
+@njit(cache=True, nogil=True)
+def _progressing_rows(
+    indptr: Any, nxt: Any, probs: Any, allowed: Any, dist: Any, out: Any
+) -> None:  # pragma: no cover - compiled
+    # out[s * A + a]: (s, a) is allowed and can move (p > 0) to a state with a smaller
+    # finite distance than s's own.
+    S = dist.shape[0]
+    A = allowed.shape[0] // S
+    for row in range(S * A):
+        s = row // A
+        ok = False
+        if allowed[row] and dist[s] > 0:
+            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+                d = dist[np.uint64(nxt[k])]
+                if probs[k] > 0.0 and 0 <= d < dist[s]:
+                    ok = True
+                    break
+        out[row] = ok
+
+
+def termination_distances(mdp: Any, allowed: np.ndarray) -> np.ndarray:
+    """d(s): the fewest steps from s to a terminal state using only ``allowed`` actions.
+
+    d(s) = 0 on terminal states, d(s) = 1 + min {d(s') : p(s' | s, a) > 0, a allowed in s}
+    elsewhere, and -1 where no terminal state can be reached that way. One breadth-first
+    search backwards from the terminal states, linear in the number of outcomes.
+
+    Args:
+        mdp: The FiniteMDP.
+        allowed: Boolean (S, A) mask of the actions that may be used.
+    """
+    return np.asarray(
+        _termination_distances(
+            mdp.indptr,
+            mdp.next_states,
+            mdp.probs,
+            np.ascontiguousarray(allowed, dtype=np.bool_).reshape(-1),
+            mdp.terminal,
+        )
+    )
+
+
+def progressing_actions(mdp: Any, allowed: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """The allowed (s, a) that can move to a state with a smaller finite ``dist`` (S, A)."""
+    flat = np.ascontiguousarray(allowed, dtype=np.bool_).reshape(-1)
+    out = np.empty(flat.shape[0], dtype=np.bool_)
+    _progressing_rows(mdp.indptr, mdp.next_states, mdp.probs, flat, dist, out)
+    return out.reshape(mdp.n_states, mdp.n_actions)

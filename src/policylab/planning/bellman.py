@@ -39,6 +39,7 @@ __all__ = [
     "optimal_actions",
     "policy_reward",
     "policy_transition_matrix",
+    "proper_actions",
     "state_values",
 ]
 
@@ -156,7 +157,7 @@ def state_values(mdp: FiniteMDP, q: ArrayLike, policy: PolicyLike) -> NDArray[np
 
 
 def optimal_actions(
-    mdp: FiniteMDP, q: ArrayLike, tol: float = DEFAULT_TIE_TOL
+    mdp: FiniteMDP, q: ArrayLike, tol: float = DEFAULT_TIE_TOL, *, proper: bool = False
 ) -> NDArray[np.bool_]:
     """The greedy (all maximizing) actions of each state, as a boolean (S, A) mask.
 
@@ -165,25 +166,72 @@ def optimal_actions(
 
     With q = q_* these are all the optimal actions (notes section 5.5); any policy
     that puts its mass on them is optimal. Rows of terminal states are all False.
+
+    ``proper=True`` keeps only the greedy actions that lead toward termination, so
+    that every policy on the mask is also *proper* (reaches a terminal state with
+    probability 1), which matters at gamma = 1: a zero-reward self-loop can tie with
+    the move to the goal, and a policy that takes it never ends the episode. The rule:
+    let d(s) be the fewest steps from s to a terminal state along transitions of greedy
+    actions (d = 0 on terminal states; a breadth-first search backwards from them, see
+    :func:`proper_actions`); in a state with finite d keep the greedy actions that can
+    move, with positive probability, to a state with a smaller d. Under any policy on
+    these actions every step has a positive probability of lowering d, which is bounded,
+    so a terminal state is reached with probability 1, also on stochastic MDPs. With
+    q = q_* such a proper optimal policy exists exactly when every state has finite d;
+    states with no greedy path to termination keep all their greedy actions (no proper
+    optimal choice exists there).
     """
     t = check_tol(tol, "tol") if tol != 0 else 0.0
     qq = np.where(mdp.action_mask, check_q(mdp, q), -np.inf)
     best = qq.max(axis=1, keepdims=True)
     best[mdp.terminal] = 0.0
     mask: NDArray[np.bool_] = mdp.action_mask & (qq >= best - t * np.maximum(1.0, np.abs(best)))
-    return mask
+    mask[mdp.terminal] = False
+    return proper_actions(mdp, mask) if proper else mask
 
 
-def greedy_actions(mdp: FiniteMDP, q: ArrayLike, tol: float = DEFAULT_TIE_TOL) -> NDArray[np.int64]:
-    """The first (lowest-index) greedy action of each state; -1 for terminal states."""
-    mask = optimal_actions(mdp, q, tol)
+def proper_actions(mdp: FiniteMDP, allowed: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """The actions of ``allowed`` (S, A) that move toward termination (see :func:`optimal_actions`).
+
+    d(s) = 0 on terminal states, d(s) = 1 + min {d(s') : p(s' | s, a) > 0, a allowed in s};
+    in a state with finite d the returned mask keeps the allowed actions that can reach
+    (p > 0) a state with a smaller d, so every policy on the mask is proper from those
+    states; states from which no allowed path reaches a terminal state keep every
+    allowed action. With ``allowed = mdp.action_mask`` this yields a proper policy of
+    the MDP, with the optimal-action mask a proper optimal one.
+    """
+    from policylab.planning._kernels import progressing_actions, termination_distances
+
+    allowed = np.asarray(allowed, dtype=bool) & mdp.action_mask
+    allowed[mdp.terminal] = False
+    dist = termination_distances(mdp, allowed)
+    keep = progressing_actions(mdp, allowed, dist)
+    stuck = dist < 0
+    keep[stuck] = allowed[stuck]
+    return keep
+
+
+def greedy_actions(
+    mdp: FiniteMDP, q: ArrayLike, tol: float = DEFAULT_TIE_TOL, *, proper: bool = False
+) -> NDArray[np.int64]:
+    """The first (lowest-index) greedy action of each state; -1 for terminal states.
+
+    ``proper=True``: the first greedy action that leads toward termination (see
+    :func:`optimal_actions`).
+    """
+    mask = optimal_actions(mdp, q, tol, proper=proper)
     out: NDArray[np.int64] = mask.argmax(axis=1).astype(np.int64)
     out[mdp.terminal] = -1
     return out
 
 
 def greedy_policy(
-    mdp: FiniteMDP, q: ArrayLike, tol: float = DEFAULT_TIE_TOL, ties: str = "first"
+    mdp: FiniteMDP,
+    q: ArrayLike,
+    tol: float = DEFAULT_TIE_TOL,
+    ties: str = "first",
+    *,
+    proper: bool = False,
 ) -> Policy:
     """The greedy policy pi(s) = argmax_{a in A(s)} q(s, a) (notes section 5.5, q_* -> pi_*).
 
@@ -195,22 +243,27 @@ def greedy_policy(
         ties: ``"first"``: a deterministic policy taking the lowest-index tied action
             (in the order of ``mdp.actions``); ``"uniform"``: a stochastic policy
             spreading its mass equally over all tied actions.
+        proper: Break ties toward termination: only tied actions that can move to a
+            state fewer greedy steps from a terminal state are used (see
+            :func:`optimal_actions`), so that with q = q_* at gamma = 1 the policy is
+            optimal *and* reaches a terminal state with probability 1 whenever such a
+            policy exists. The solvers do this at gamma = 1.
 
     Returns:
         The greedy :class:`Policy`.
     """
-    mask = optimal_actions(mdp, q, tol)
+    if ties not in ("first", "uniform"):
+        from policylab.exceptions import InvalidArgumentError
+
+        raise InvalidArgumentError(f"ties must be 'first' or 'uniform'; got {ties!r}")
+    mask = optimal_actions(mdp, q, tol, proper=proper)
     if ties == "first":
         acts = mask.argmax(axis=1)
         probs = np.zeros((mdp.n_states, mdp.n_actions))
         live = np.flatnonzero(~mdp.terminal)
         probs[live, acts[live]] = 1.0
-    elif ties == "uniform":
+    else:
         m = mask.astype(np.float64)
         n = m.sum(axis=1, keepdims=True)
         probs = np.divide(m, n, out=np.zeros_like(m), where=n > 0)
-    else:
-        from policylab.exceptions import InvalidArgumentError
-
-        raise InvalidArgumentError(f"ties must be 'first' or 'uniform'; got {ties!r}")
     return Policy.from_array(mdp, probs)

@@ -28,15 +28,23 @@ from policylab.planning._checks import (
     check_positive_int,
     check_tol,
     check_v,
+    raise_if_stuck,
     require_terminal_reachable,
 )
 from policylab.planning._kernels import (
     gauss_seidel_optimality_sweep,
     optimality_sweep,
     policy_matvec,
+    termination_distances,
 )
 from policylab.planning._sweeps import run_sweeps, span_bounds
-from policylab.planning.bellman import DEFAULT_TIE_TOL, _policy_matrix, _q, greedy_policy
+from policylab.planning.bellman import (
+    DEFAULT_TIE_TOL,
+    _policy_matrix,
+    _q,
+    greedy_policy,
+    proper_actions,
+)
 from policylab.planning.evaluation import _matvec, solve_policy_system
 from policylab.planning.result import PlanningResult
 
@@ -53,20 +61,15 @@ def _masked_reward(mdp: FiniteMDP) -> NDArray[np.float64]:
     return np.where(mdp.action_mask, mdp.expected_reward, -np.inf)
 
 
-def _union_graph(mdp: FiniteMDP) -> sp.csr_array:
-    """S x S graph with an edge s -> s' when some available action can lead there."""
-    S, A = mdp.n_states, mdp.n_actions
-    agg = sp.csr_array(
-        (np.ones(S * A), (np.repeat(np.arange(S), A), np.arange(S * A))), shape=(S, S * A)
-    )
-    return sp.csr_array(agg @ mdp.transition_matrix)
+def _all_reach_terminal(mdp: FiniteMDP) -> bool:
+    """Whether every state can reach a terminal state under some policy."""
+    return bool((termination_distances(mdp, mdp.action_mask) >= 0).all())
 
 
 def _require_episodic(mdp: FiniteMDP, what: str) -> None:
     """Gamma = 1: every state must be able to reach a terminal state under some policy."""
-    require_terminal_reachable(
-        mdp, _union_graph(mdp), f"{what} (under any policy)", InvalidMDPError
-    )
+    stuck = np.flatnonzero(termination_distances(mdp, mdp.action_mask) < 0)
+    raise_if_stuck(mdp, stuck, f"{what} (under any policy)", InvalidMDPError)
 
 
 def value_iteration(
@@ -76,6 +79,7 @@ def value_iteration(
     gamma: float | None = None,
     max_iter: int = 100_000,
     gauss_seidel: bool = False,
+    order: str | ArrayLike = "auto",
     v0: ArrayLike | None = None,
     tie_tol: float = DEFAULT_TIE_TOL,
 ) -> PlanningResult:
@@ -89,7 +93,20 @@ def value_iteration(
     ``max_s |res.v(s) - v_*(s)| <= res.error_bound <= tol`` is guaranteed, not hoped
     for. This stops far earlier than the textbook rule ||d|| < tol (1-gamma)/(2 gamma)
     when the values move together. Gauss-Seidel sweeps (``gauss_seidel=True``) update
-    states in place in index order and stop when gamma/(1-gamma) max_s |d(s)| <= tol.
+    states in place, one after the other in ``order``, and stop when gamma/(1-gamma)
+    max_s |d(s)| <= tol (the in-place sweep is a gamma-contraction too, in any order).
+    Each in-place update solves the state's own self-loop exactly (see
+    :func:`gauss_seidel_optimality_sweep`), so that slipping in place costs no sweeps.
+
+    Sweep order (Gauss-Seidel only): ``"terminal-first"`` visits the states by their
+    distance to the nearest terminal state (fewest steps under any action; states that
+    cannot reach one last), so that values flow from the end of the episode backwards
+    in one sweep; ``"index"`` is the order of ``mdp.states``; an array gives the order
+    itself (a permutation of the state indices); ``"auto"`` is ``"terminal-first"``
+    when the MDP has terminal states and ``"index"`` otherwise. Without ``v0`` and
+    with gamma < 1, in-place sweeps start from the lower bound min(0, min r) / (1 -
+    gamma) <= v_*: from below, an ordered sweep propagates the exact values instead
+    of optimistic guesses from states not yet visited.
 
     gamma = 1 (episodic tasks): every state must be able to reach a terminal state,
     and sweeps stop when max_s |d(s)| <= tol; no sup-norm bound exists in general, so
@@ -101,7 +118,8 @@ def value_iteration(
         gamma: Discount rate; default ``mdp.gamma``.
         max_iter: The most sweeps; a NotConvergedWarning is issued if they run out.
         gauss_seidel: In-place (Gauss-Seidel) sweeps instead of synchronous ones.
-        v0: Starting values (default zeros).
+        order: Order of the in-place sweeps (see above).
+        v0: Starting values (default zeros; see above for in-place sweeps).
         tie_tol: Tie tolerance of the greedy policy (see :func:`greedy_policy`).
 
     Returns:
@@ -113,7 +131,18 @@ def value_iteration(
     check_positive_int(max_iter, "max_iter")
     if g == 1.0:
         _require_episodic(mdp, "value iteration")
-    start = np.zeros(mdp.n_states) if v0 is None else check_v(mdp, v0, "v0").copy()
+    if not gauss_seidel and not (isinstance(order, str) and order == "auto"):
+        raise InvalidArgumentError(
+            "order applies to in-place sweeps only; pass gauss_seidel=True with it"
+        )
+    sweep_order = _sweep_order(mdp, order) if gauss_seidel else None
+    if v0 is not None:
+        start = check_v(mdp, v0, "v0").copy()
+    elif gauss_seidel and g < 1.0:
+        r_min = float(_masked_reward(mdp)[mdp.action_mask].min(initial=0.0))
+        start = np.full(mdp.n_states, min(0.0, r_min) / (1.0 - g))
+    else:
+        start = np.zeros(mdp.n_states)
     start[mdp.terminal] = 0.0
     term = mdp.terminal
 
@@ -124,7 +153,7 @@ def value_iteration(
         return out
 
     def gs(v: NDArray[np.float64]) -> float:
-        return gauss_seidel_optimality_sweep(mdp, g, v)
+        return gauss_seidel_optimality_sweep(mdp, g, v, sweep_order)
 
     out = run_sweeps(
         synchronous=None if gauss_seidel else sync,
@@ -140,7 +169,7 @@ def value_iteration(
     return PlanningResult(
         v=out.v,
         q=q,
-        policy=greedy_policy(mdp, q, tie_tol),
+        policy=greedy_policy(mdp, q, tie_tol, proper=g == 1.0),
         iterations=out.iterations,
         converged=out.converged,
         history=out.history,
@@ -150,6 +179,33 @@ def value_iteration(
         error_bound=out.error_bound,
         seconds=time.perf_counter() - t0,
     )
+
+
+def _sweep_order(mdp: FiniteMDP, order: str | ArrayLike) -> NDArray[np.int64]:
+    """The state order of in-place sweeps (see :func:`value_iteration`)."""
+    S = mdp.n_states
+    if isinstance(order, str):
+        if order not in ("auto", "terminal-first", "index"):
+            raise InvalidArgumentError(
+                f"order must be 'auto', 'terminal-first', 'index' or a permutation of the "
+                f"{S} state indices; got {order!r}"
+            )
+        if order == "index" or (order == "auto" and not mdp.terminal.any()):
+            return np.arange(S, dtype=np.int64)
+        dist = termination_distances(mdp, mdp.action_mask)
+        key = np.where(dist < 0, np.iinfo(np.int64).max, dist)
+        return np.argsort(key, kind="stable").astype(np.int64)
+    arr = np.asarray(order)
+    if (
+        arr.shape != (S,)
+        or not np.issubdtype(arr.dtype, np.integer)
+        or not np.array_equal(np.sort(arr), np.arange(S))
+    ):
+        raise InvalidArgumentError(
+            f"order must be a permutation of the {S} state indices 0..{S - 1}; got an array "
+            f"of shape {arr.shape} and dtype {arr.dtype}"
+        )
+    return arr.astype(np.int64)
 
 
 def _one_hot(mdp: FiniteMDP, actions: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -162,36 +218,19 @@ def _one_hot(mdp: FiniteMDP, actions: NDArray[np.int64]) -> NDArray[np.float64]:
 def proper_policy(mdp: FiniteMDP) -> Policy:
     """A deterministic policy that reaches a terminal state with probability 1 from every state.
 
-    Built backwards from the terminal states by breadth-first search: each state takes an
-    action that can move it one step closer to a terminal state, so that from every state
-    some path to termination has positive probability under the policy. Policy iteration
-    starts from it when gamma = 1.
+    Each state takes its first action that can move it, with positive probability, to a
+    state fewer steps from a terminal state (the distances of a breadth-first search
+    backwards from the terminal states; see :func:`proper_actions`). Every step then has
+    a positive probability of getting closer, so termination is certain. Policy
+    iteration starts from it when gamma = 1.
 
     Raises:
         InvalidMDPError: Naming the states from which no policy reaches a terminal state.
     """
-    from scipy.sparse.csgraph import breadth_first_order
-
     _require_episodic(mdp, "an episodic task")
-    S, A = mdp.n_states, mdp.n_actions
-    g = sp.coo_array(_union_graph(mdp))
-    rows = np.concatenate([g.col, np.full(int(mdp.terminal.sum()), S)])
-    cols = np.concatenate([g.row, np.flatnonzero(mdp.terminal)])
-    rev = sp.csr_array((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(S + 1, S + 1))
-    _, pred = breadth_first_order(rev, S, directed=True, return_predecessors=True)
-    live = np.flatnonzero(~mdp.terminal)
-    target = pred[live]  # a next state one step closer to termination
-    tm = mdp.transition_matrix
-    actions = np.full(S, -1, dtype=np.int64)
-    for a in range(A):
-        todo = actions[live] < 0
-        if not todo.any():
-            break
-        hit = np.asarray(tm[live[todo] * A + a, target[todo]]).ravel() > 0
-        sel = live[todo][hit]
-        actions[sel] = a
-    actions[mdp.terminal] = 0
-    return Policy.from_actions(mdp, actions)
+    acts = proper_actions(mdp, mdp.action_mask).argmax(axis=1)
+    acts[mdp.terminal] = 0
+    return Policy.from_actions(mdp, acts.astype(np.int64))
 
 
 def policy_iteration(
@@ -218,9 +257,12 @@ def policy_iteration(
         gamma: Discount rate; default ``mdp.gamma``.
         evaluation: ``"exact"`` (sparse linear solve, see :func:`evaluate_policy`) or
             ``"iterative"`` (synchronous sweeps to ``tol``, warm-started).
-        policy: The starting policy (default: greedy in the one-step reward r(s, a) for
-            gamma < 1, :func:`proper_policy` for gamma = 1). A stochastic start is
-            evaluated once and improved.
+        policy: The starting policy (default: :func:`proper_policy` on episodic tasks,
+            where every state can reach a terminal state, whatever gamma; otherwise
+            greedy in the one-step reward r(s, a)). A stochastic start is evaluated once
+            and improved. Heading for the end of the episode is a far better start than
+            the one-step reward on problems with long episodes (a chain of n states
+            needs n improvements from "all left", one from the proper policy).
         max_iter: The most improvement steps (NotConvergedWarning if reached).
         tol: Evaluation accuracy (iterative sweeps, or GMRES on large systems).
         tie_tol: Tie tolerance of the improvement step.
@@ -242,7 +284,7 @@ def policy_iteration(
     R = mdp.expected_reward
     if policy is not None:
         probs = np.asarray(as_policy(mdp, policy).probs)
-    elif g == 1.0:
+    elif g == 1.0 or (mdp.terminal.any() and _all_reach_terminal(mdp)):
         probs = np.asarray(proper_policy(mdp).probs)
     else:
         probs = np.asarray(greedy_policy(mdp, mdp.expected_reward).probs)
@@ -430,7 +472,7 @@ def modified_policy_iteration(
     return PlanningResult(
         v=v,
         q=q,
-        policy=greedy_policy(mdp, q, tie_tol),
+        policy=greedy_policy(mdp, q, tie_tol, proper=g == 1.0),
         iterations=len(history),
         converged=converged,
         history=np.asarray(history),

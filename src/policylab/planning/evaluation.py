@@ -12,8 +12,11 @@ non-terminal states (terminal states have value 0):
   chains (random sparse graphs, whose P_pi has small eigenvalues besides 1) the
   error span shrinks by gamma |lambda_2| per sweep, so a few dozen products suffice;
   a direct LU of such a graph fills in badly (near-dense at 10^4 states).
-* slowly mixing chains (the sweeps have not finished after 60 products), gamma = 1,
-  or ``solver="krylov"``: restarted GMRES on the matrix-free operator, with
+* slowly mixing chains (the sweeps have not finished after 60 products) and gamma =
+  1: up to :data:`LU_AFTER_SWEEPS_MAX_STATES` non-terminal states the sparse LU (such
+  chains are local, grids and lines, and factor with little fill-in, where
+  unpreconditioned GMRES needs thousands of products);
+* larger ones, or ``solver="krylov"``: restarted GMRES on the matrix-free operator, with
   iterative refinement until ||r_pi - (I - gamma P_pi) v||_inf <= (1 - gamma) tol,
   which guarantees max_s |v(s) - v_pi(s)| <= tol since ||(I - gamma P_pi)^{-1}||_inf
   <= 1 / (1 - gamma) for a (sub)stochastic P_pi. If GMRES stalls, the sparse LU.
@@ -56,6 +59,10 @@ __all__ = ["DIRECT_MAX_STATES", "evaluate_policy", "solve_policy_system"]
 
 #: Below this many non-terminal states, ``solver="auto"`` uses the sparse LU.
 DIRECT_MAX_STATES = 5000
+
+#: ``solver="auto"``: up to this many non-terminal states, a system that the sweeps do
+#: not finish goes to the sparse LU directly (above it, GMRES first).
+LU_AFTER_SWEEPS_MAX_STATES = 250_000
 
 #: Default accuracy of exact evaluation with GMRES, relative to the value scale
 #: max|r| / (1 - gamma) (the LU is exact to rounding).
@@ -157,7 +164,14 @@ def solve_policy_system(
                     error_bound=bound,
                 )
             start = xs  # slow mixing: hand the sweeps' estimate to GMRES
-        if x is None:
+        n_live = int((~mdp.terminal).sum())
+        slow_local = solver == "auto" and n_live <= LU_AFTER_SWEEPS_MAX_STATES
+        if x is None and slow_local:
+            # The sweeps did not finish (gamma = 1, or a slowly mixing chain): such
+            # chains are local (grids, lines, queues), whose sparse LU fills in little,
+            # while unpreconditioned GMRES crawls on them. Straight to the LU.
+            info["krylov_fallback"] = "slow mixing: sparse LU without GMRES"
+        elif x is None:
             xg, its, res = _gmres_refined(op, b, start, target_res)
             if res <= target_res:
                 x = xg
@@ -234,7 +248,7 @@ def _gmres_refined(
             count[0] += 1
 
         dx, _code = spla.gmres(
-            M, r, rtol=1e-8, atol=0.0, restart=40, maxiter=50, callback=cb, callback_type="pr_norm"
+            M, r, rtol=1e-8, atol=0.0, restart=40, maxiter=8, callback=cb, callback_type="pr_norm"
         )
         its += count[0]
         x += dx

@@ -64,11 +64,17 @@ class PlanningResult:
     stage_actions: NDArray[np.int64] | None = None
     info: dict[str, Any] = field(default_factory=dict)
 
-    def optimal_actions(self, mdp: FiniteMDP, tol: float = 1e-9) -> dict[Any, list[Any]]:
-        """All actions of each non-terminal state within ``tol`` of the best q, by label."""
+    def optimal_actions(
+        self, mdp: FiniteMDP, tol: float = 1e-9, *, proper: bool = False
+    ) -> dict[Any, list[Any]]:
+        """All actions of each non-terminal state within ``tol`` of the best q, by label.
+
+        ``proper=True``: only those that lead toward termination (see
+        :func:`policylab.planning.optimal_actions`).
+        """
         from policylab.planning.bellman import optimal_actions
 
-        mask = optimal_actions(mdp, self.q, tol)
+        mask = optimal_actions(mdp, self.q, tol, proper=proper)
         return {
             mdp.states[s]: [mdp.actions[a] for a in np.flatnonzero(mask[s])]
             for s in np.flatnonzero(~mdp.terminal)

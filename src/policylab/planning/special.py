@@ -19,7 +19,7 @@ from policylab.planning.control import _masked_reward, _require_episodic
 from policylab.planning.result import PlanningResult
 
 if TYPE_CHECKING:
-    from numpy.typing import ArrayLike
+    from numpy.typing import ArrayLike, NDArray
 
     from policylab.mdp.finite import FiniteMDP
 
@@ -81,7 +81,7 @@ def linear_programming(
     return PlanningResult(
         v=v,
         q=q,
-        policy=greedy_policy(mdp, q, tie_tol),
+        policy=greedy_policy(mdp, q, tie_tol, proper=g == 1.0),
         iterations=int(res.nit),
         converged=True,
         history=np.asarray([residual]),
@@ -155,6 +155,26 @@ def backward_induction(
     )
 
 
+#: Relative value iteration reports a multichain MDP when, for this many sweeps in a
+#: row, no d(s) = (T h - h)(s) moved by more than this fraction of max d - min d. A
+#: unichain MDP whose d narrows that slowly (span shrinking by a factor 1 - 1e-6 per
+#: sweep) would need millions of sweeps anyway.
+_MULTICHAIN_RATIO = 1e-6
+_MULTICHAIN_SWEEPS = 5
+
+
+def _raise_multichain(mdp: FiniteMDP, d: NDArray[np.float64], sweeps: int) -> None:
+    lo, hi = int(d.argmin()), int(d.argmax())
+    raise InvalidMDPError(
+        f"relative value iteration on MDP {mdp.name!r}: the optimal gain differs by state "
+        f"(a multichain MDP): about {d[lo]:.6g} per step from state {mdp.states[lo]!r} but "
+        f"{d[hi]:.6g} from state {mdp.states[hi]!r} (steady after {sweeps} sweeps). The "
+        "average-reward equation g + h = T h needs one gain for every state (a unichain or "
+        "communicating MDP); solve each closed set of states separately, or use "
+        "value_iteration or policy_iteration with gamma < 1"
+    )
+
+
 def relative_value_iteration(
     mdp: FiniteMDP,
     *,
@@ -191,9 +211,15 @@ def relative_value_iteration(
     Returns:
         A :class:`PlanningResult` with ``v`` = h, ``gain`` = g, and ``q`` = r + P h - g.
 
+    Multichain MDPs, whose optimal gain differs by state (two absorbing states with
+    different rewards, say), have no solution of this equation: d = T h - h then
+    settles on a different value per state instead of narrowing, which is detected
+    (d has stopped moving while max d - min d stays wide) and reported.
+
     Raises:
         InvalidMDPError: If the MDP has terminal states (the average reward of an
-            episodic task is not what this computes).
+            episodic task is not what this computes), or if the optimal gain differs
+            by state (a multichain MDP; the message names two states and their gains).
     """
     t0 = time.perf_counter()
     t = check_tol(tol)
@@ -218,6 +244,8 @@ def relative_value_iteration(
     converged = False
     gain = 0.0
     bound = np.inf
+    d_prev = np.full(S, np.nan)
+    steady = 0
     for _ in range(max_iter):
         q = np.asarray(tm @ h).reshape(S, A) + rm
         w = tau * q.max(axis=1) + (1.0 - tau) * h
@@ -231,6 +259,13 @@ def relative_value_iteration(
             break
         if not np.isfinite(bound):
             break
+        # Multichain: d = T h - h tends to the optimal gain of each state, so when d has
+        # stopped moving while its span stays wide, the gain differs by state.
+        moved = float(np.abs(d - d_prev).max())
+        steady = steady + 1 if moved <= _MULTICHAIN_RATIO * (hi - lo) else 0
+        if steady >= _MULTICHAIN_SWEEPS:
+            _raise_multichain(mdp, d, len(history))
+        d_prev = d
     if not converged:
         warnings.warn(
             f"relative value iteration stopped after {len(history)} sweeps (max_iter) with the "

@@ -1,0 +1,135 @@
+"""``solve``: one entry point to the exact solvers, with ``method="auto"`` choosing one.
+
+The automatic choice follows what the benchmark suite (``benchmarks/bench_planning.py``)
+measured on families of MDPs, from the problem's size, gamma and structure:
+
+1. Episodic with gamma < 1 (terminal states that every state can reach): in-place
+   (Gauss-Seidel) value iteration, sweeping the states from the terminal states
+   backwards and starting from a lower bound of v_*, with each self-loop solved
+   exactly. Values then flow to the start in a few sweeps where synchronous sweeps
+   need one per step of the longest episode; the stopping rule keeps its proof
+   (max_s |v(s) - v_*(s)| <= tol).
+2. Episodic with gamma = 1: policy iteration from a proper policy. Sweeps have no
+   error bound at gamma = 1 and may need as many sweeps as the longest episode;
+   policy iteration is exact and, from a policy that heads for the end, needs few
+   improvements.
+3. Continuing and small (at most ``DIRECT_MAX_STATES`` states): policy iteration
+   with a sparse LU (exact, a handful of improvements).
+4. Continuing and large, gamma <= 0.99: synchronous value iteration stopped by
+   MacQueen's bounds, which close in a few dozen sweeps on chains that mix.
+5. Continuing and large, gamma > 0.99: modified policy iteration (partial
+   evaluations carry values further per improvement than single sweeps).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING
+
+from policylab.exceptions import InvalidArgumentError
+from policylab.planning._checks import check_gamma, check_tol
+from policylab.planning.control import (
+    _all_reach_terminal,
+    modified_policy_iteration,
+    policy_iteration,
+    value_iteration,
+)
+from policylab.planning.evaluation import DIRECT_MAX_STATES
+from policylab.planning.result import PlanningResult
+from policylab.planning.special import linear_programming
+
+if TYPE_CHECKING:
+    from policylab.mdp.finite import FiniteMDP
+
+__all__ = ["METHODS", "choose_method", "solve"]
+
+#: The methods of :func:`solve`, by name.
+METHODS = {
+    "auto": "chosen from the problem's size, gamma and structure",
+    "vi": "value iteration (synchronous, MacQueen's bounds)",
+    "vi-gs": "value iteration (Gauss-Seidel, terminal states first)",
+    "pi": "policy iteration (exact evaluation)",
+    "mpi": "modified policy iteration",
+    "lp": "linear programming (HiGHS)",
+}
+
+
+def choose_method(mdp: FiniteMDP, gamma: float | None = None) -> tuple[str, str]:
+    """The method ``solve(mdp, method="auto")`` uses, and why (see the module docstring).
+
+    Returns:
+        ``(method, reason)``: a key of :data:`METHODS` other than ``"auto"``, and one
+        sentence saying why it suits this MDP.
+    """
+    g = check_gamma(mdp, gamma)
+    n_live = int((~mdp.terminal).sum())
+    if mdp.terminal.any() and _all_reach_terminal(mdp):
+        if g < 1.0:
+            return "vi-gs", (
+                "episodic task with gamma < 1: in-place sweeps ordered from the terminal "
+                "states backwards carry the values to every state in a few sweeps"
+            )
+        return "pi", (
+            "episodic task with gamma = 1: sweeps have no error bound there; policy "
+            "iteration from a proper policy is exact in few improvements"
+        )
+    if n_live <= DIRECT_MAX_STATES:
+        return "pi", (
+            f"continuing task with {n_live:,} states (<= {DIRECT_MAX_STATES:,}): policy "
+            "iteration with a sparse LU is exact in a handful of improvements"
+        )
+    if g <= 0.99:
+        return "vi", (
+            f"large continuing task, gamma {g:g} <= 0.99: MacQueen's bounds close in a "
+            "few dozen synchronous sweeps when the chain mixes"
+        )
+    return "mpi", (
+        f"large continuing task, gamma {g:g} > 0.99: partial policy evaluations between "
+        "improvements carry values further than single sweeps"
+    )
+
+
+def solve(
+    mdp: FiniteMDP,
+    method: str = "auto",
+    *,
+    tol: float = 1e-8,
+    gamma: float | None = None,
+) -> PlanningResult:
+    """v_* and an optimal policy by the named method, or by the one that suits the MDP.
+
+    Args:
+        mdp: The MDP.
+        method: A key of :data:`METHODS`; ``"auto"`` picks one with :func:`choose_method`.
+        tol: Accuracy asked of v for the sweeping methods (proven for gamma < 1; see
+            :func:`value_iteration`); policy iteration and linear programming are exact
+            up to their own tolerances.
+        gamma: Discount rate; default ``mdp.gamma``.
+
+    Returns:
+        The solver's :class:`PlanningResult`. With ``"auto"``, ``method`` reads
+        ``"auto: <the method used>"`` and ``info["auto"]`` holds ``{"method": key,
+        "reason": sentence}``.
+    """
+    if not isinstance(method, str) or method not in METHODS:
+        raise InvalidArgumentError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
+    g = check_gamma(mdp, gamma)
+    t = check_tol(tol)
+    chosen, reason = choose_method(mdp, g) if method == "auto" else (method, "")
+    if chosen == "vi":
+        res = value_iteration(mdp, tol=t, gamma=g)
+    elif chosen == "vi-gs":
+        res = value_iteration(mdp, tol=t, gamma=g, gauss_seidel=True, order="auto")
+    elif chosen == "mpi":
+        res = modified_policy_iteration(mdp, tol=t, gamma=g)
+    elif chosen == "lp":
+        res = linear_programming(mdp, gamma=g)
+    else:
+        res = policy_iteration(mdp, gamma=g)
+    if method != "auto":
+        return res
+    return dataclasses.replace(
+        res,
+        method=f"auto: {res.method}",
+        info={**res.info, "auto": {"method": chosen, "reason": reason}},
+    )

@@ -157,8 +157,9 @@ def check_number(
     lo_bad = low is not None and (x <= low if low_open else x < low)
     hi_bad = high is not None and (x >= high if high_open else x > high)
     if lo_bad or hi_bad:
+        given = value if isinstance(value, int | np.integer | float | np.floating) else x
         raise InvalidArgumentError(
-            f"{name} must be {_interval(low, high, low_open, high_open)}; got {fmt_number(x)}"
+            f"{name} must be {_interval(low, high, low_open, high_open)}; got {fmt_number(given)}"
         )
     return x
 

@@ -48,13 +48,7 @@ def check_gamma(mdp: FiniteMDP, gamma: float | None) -> float:
 
 def check_tol(tol: float, name: str = "tol") -> float:
     """A strictly positive finite tolerance."""
-    try:
-        t = float(tol)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError(f"{name} must be a positive number; got {tol!r}") from None
-    if not (np.isfinite(t) and t > 0):
-        raise InvalidArgumentError(f"{name} must be a positive finite number; got {tol!r}")
-    return t
+    return validation.check_positive(tol, name)
 
 
 def check_positive_int(x: int, name: str, minimum: int = 1) -> int:

@@ -44,7 +44,9 @@ def _parse_set(items: list[str]) -> dict[str, Any]:
 
 
 def train_command(
-    algo: Annotated[str, typer.Argument(help="Algorithm: ppo or dqn.")],
+    algo: Annotated[
+        str, typer.Argument(help="Algorithm: ppo or dqn; board games: selfplay-td, alphazero.")
+    ],
     env_id: Annotated[
         str,
         typer.Argument(
@@ -87,6 +89,18 @@ def train_command(
         bool, typer.Option("--progress/--no-progress", help="Show the progress bar.")
     ] = True,
 ) -> None:
+    from policylab.cli.cmd_games import GAME_LEARNERS, train_game
+
+    if algo.lower() in GAME_LEARNERS:  # board games: train selfplay-td|alphazero GAME
+        return train_game(
+            algo.lower(),
+            env_id,
+            out=out,
+            seed=seed,
+            resume=resume,
+            fields=_parse_set(set_ or []),
+            progress=progress,
+        )
     import numpy as np
 
     from policylab.deep.common.config import config_help, load_config_file

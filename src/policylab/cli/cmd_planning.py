@@ -79,8 +79,26 @@ def solve_command(
     json_out: JsonOpt = False,
     plot: PlotOpt = None,
     max_rows: RowsOpt = 60,
+    position: Annotated[
+        str | None,
+        typer.Option(
+            "--position",
+            help="tic-tac-toe / connect-four only: the moves played (cells 1-9 or columns "
+            "1-7), e.g. 4455.",
+        ),
+    ] = None,
 ) -> None:
-    """Solve a problem exactly: optimal values v_* and an optimal policy pi_*."""
+    """Solve a problem exactly: optimal values v_* and an optimal policy pi_*.
+
+    Board games: `solve tic-tac-toe [--position MOVES]` gives the value and optimal moves,
+    `solve connect-four --position MOVES` the score in Pascal Pons' convention.
+    """
+    from policylab.games.registry import is_game
+
+    if is_game(problem):
+        from policylab.cli.cmd_games import solve_game
+
+        return solve_game(problem, position, json_out)
     from policylab.planning import (
         linear_programming,
         modified_policy_iteration,

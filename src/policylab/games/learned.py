@@ -48,7 +48,7 @@ def train_selfplay_td(
                 raise CheckpointError(f"{str(rd)!r} is not a selfplay-td run")
             cfg = SelfPlayTDConfig(**meta["config"])
             done = int(meta["chunks_done"])
-            V = np.array(tensors["values"], dtype=np.float64)
+            V = np.asarray(tensors["values"].numpy(), dtype=np.float64)
         else:
             cfg = config or SelfPlayTDConfig()
             cfg.validate()
@@ -89,16 +89,16 @@ def load_player(
         CheckpointError: If the folder holds no game learner's run.
         InvalidArgumentError: If the run learned another game.
     """
-    from policylab.deep.common.checkpoint import load_checkpoint
-
     rd = Path(run_dir)
     doc = read_run_json(rd)
+    from policylab.deep.common.checkpoint import load_checkpoint
+
     if doc["game"] != game.name:
         raise InvalidArgumentError(f"run {str(rd)!r} learned {doc['game']}, not {game.name}")
     meta, tensors = load_checkpoint(rd / CHECKPOINT)
     algo = meta.get("algo")
     if algo == "selfplay-td":
-        return TDPlayer(np.array(tensors["values"], dtype=np.float64), name=str(rd))
+        return TDPlayer(np.asarray(tensors["values"].numpy(), dtype=np.float64), name=str(rd))
     if algo == "alphazero":
         from policylab.games.alphazero import AlphaZeroPlayer
 

@@ -88,7 +88,9 @@ def test_player_spec_errors(tmp_path):
     with pytest.raises(InvalidArgumentError, match="finished game"):
         UCT(10).choose(TIC_TAC_TOE.from_moves("14253"))
     with pytest.raises(InvalidArgumentError, match="--games"):
-        arena(TIC_TAC_TOE, make_player("random", TIC_TAC_TOE), make_player("random", TIC_TAC_TOE), 0)
+        arena(
+            TIC_TAC_TOE, make_player("random", TIC_TAC_TOE), make_player("random", TIC_TAC_TOE), 0
+        )
     from policylab.exceptions import CheckpointError
 
     with pytest.raises(CheckpointError, match="not a game learner's run folder"):

@@ -187,7 +187,7 @@ def train_game(
     fields: dict[str, Any],
     progress: bool,
 ) -> None:
-    """``policylab train selfplay-td|alphazero GAME --out DIR``: Ctrl-C keeps the last checkpoint."""
+    """``policylab train selfplay-td|alphazero GAME --out DIR``; Ctrl-C keeps the checkpoint."""
     from policylab.games.registry import get_game
 
     g = get_game(game)
@@ -224,7 +224,8 @@ def _train_td(
     bad = set(fields) - known
     if bad:
         raise InvalidArgumentError(
-            f"unknown selfplay-td setting(s) {', '.join(sorted(bad))}; known: {', '.join(sorted(known))}"
+            f"unknown selfplay-td setting(s) {', '.join(sorted(bad))}; "
+            f"known: {', '.join(sorted(known))}"
         )
     cfg = SelfPlayTDConfig(**{**fields, "seed": seed})
     t0 = time.perf_counter()

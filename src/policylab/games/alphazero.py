@@ -27,6 +27,7 @@ optimizer, replay, counters) and resumes from it.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import time
 from collections.abc import Callable
@@ -48,9 +49,9 @@ if TYPE_CHECKING:
     from rich.console import Console
 
 __all__ = [
+    "PUCT",
     "AlphaZeroConfig",
     "AlphaZeroPlayer",
-    "PUCT",
     "default_config",
     "train_alphazero",
 ]
@@ -110,10 +111,16 @@ class AlphaZeroConfig:
 
     def validate(self) -> None:
         """Raise InvalidArgumentError on a setting outside its range."""
-        positive = (
-            "iterations games_per_iteration simulations eval_simulations replay_games "
-            "train_steps batch_size channels"
-        ).split()
+        positive = [
+            "iterations",
+            "games_per_iteration",
+            "simulations",
+            "eval_simulations",
+            "replay_games",
+            "train_steps",
+            "batch_size",
+            "channels",
+        ]
         for name in positive:
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
@@ -162,7 +169,8 @@ def default_config(game: str | Game, **overrides: Any) -> AlphaZeroConfig:
     bad = set(overrides) - known
     if bad:
         raise InvalidArgumentError(
-            f"unknown alphazero setting(s) {', '.join(sorted(bad))}; known: {', '.join(sorted(known))}"
+            f"unknown alphazero setting(s) {', '.join(sorted(bad))}; "
+            f"known: {', '.join(sorted(known))}"
         )
     cfg = AlphaZeroConfig(**{**base, **overrides})
     cfg.validate()
@@ -447,11 +455,10 @@ def train_alphazero(
     """
     import torch
 
+    from policylab.deep.common.agent import _TorchThreads
     from policylab.deep.common.checkpoint import load_checkpoint, save_checkpoint, to_numpy_tree
     from policylab.deep.common.logging import RunLogger
     from policylab.games.runs import CHECKPOINT, open_run, write_run_json
-
-    from policylab.deep.common.agent import _TorchThreads
 
     g = get_game(game)
     with open_run(run_dir, resume=resume) as rd, _TorchThreads(1):  # small nets: 1 thread
@@ -481,7 +488,7 @@ def train_alphazero(
             bounds = np.cumsum(np.concatenate([[0], rep["lengths"]])).astype(int)
             games = [
                 (rep["planes"][i:j], rep["pi"][i:j], rep["z"][i:j])
-                for i, j in zip(bounds[:-1], bounds[1:], strict=True)
+                for i, j in itertools.pairwise(bounds)
             ]
             history = list(meta.get("history", []))
         else:
@@ -570,7 +577,7 @@ def train_alphazero(
                     loss_p = -torch.mean(torch.sum(pt * torch.log_softmax(logits, -1), -1))
                     loss = loss_v + loss_p
                     opt.zero_grad()
-                    loss.backward()
+                    loss.backward()  # type: ignore[no-untyped-call]
                     opt.step()
                     losses.append((loss_v.item(), loss_p.item()))
                 net.eval()
@@ -630,7 +637,8 @@ def train_alphazero_cli(
             bar.update(task, completed=done, total=total)
             console.print(
                 f"iteration {done}/{total}: loss v {m['loss_value']:.3f} p {m['loss_policy']:.3f}, "
-                f"new vs best {m['eval_score']:.2f} ({'accepted' if m['accepted'] else 'kept best'}), "
+                f"new vs best {m['eval_score']:.2f} "
+                f"({'accepted' if m['accepted'] else 'kept best'}), "
                 f"{m['seconds']:.1f} s"
             )
 

@@ -31,7 +31,7 @@ class GameEnv(gym.Env[dict[str, np.ndarray], int]):
         render_mode: None or 'ansi' (``render()`` returns the board as text).
     """
 
-    metadata = {"render_modes": ["ansi"]}
+    metadata = {"render_modes": ["ansi"]}  # noqa: RUF012
 
     def __init__(
         self,
@@ -51,8 +51,8 @@ class GameEnv(gym.Env[dict[str, np.ndarray], int]):
         self.play_as = play_as
         self._opponent_spec = opponent
         self.opponent: Player | None = None if isinstance(opponent, str) else opponent
-        self.action_space = gym.spaces.Discrete(self.game.n_actions)
-        self.observation_space = observation_space(self.game)
+        self.action_space = gym.spaces.Discrete(self.game.n_actions)  # type: ignore[assignment]
+        self.observation_space = observation_space(self.game)  # type: ignore[assignment]
         self.state: GameState = self.game.initial()
 
     def _obs(self) -> dict[str, np.ndarray]:

@@ -8,7 +8,7 @@ Requires the ``games`` extra (``pip install policylab[games]``).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -44,7 +44,7 @@ def observation_space(game: Game) -> gym.spaces.Dict:
 class GameAECEnv(AECEnv):  # type: ignore[misc]
     """A policylab game as a PettingZoo AEC environment."""
 
-    metadata = {
+    metadata: ClassVar[dict[str, Any]] = {
         "render_modes": ["human", "ansi"],
         "name": "policylab_game_v0",
         "is_parallelizable": False,
@@ -58,7 +58,6 @@ class GameAECEnv(AECEnv):  # type: ignore[misc]
                 f"render_mode must be None, 'human' or 'ansi'; got {render_mode!r}"
             )
         self.render_mode = render_mode
-        self.metadata = {**self.metadata, "name": f"{self.game.name.replace('-', '_')}_v0"}
         self.possible_agents = ["player_0", "player_1"]
         self.agents = self.possible_agents[:]
         self.action_spaces = {a: gym.spaces.Discrete(self.game.n_actions) for a in self.agents}

@@ -45,7 +45,7 @@ class TicTacToeSolution:
         return len(self.values)
 
     def value(self, state: TicTacToeState) -> int:
-        """v(s) for the player to move: max over moves a of -v(s after a); at the end, the outcome."""
+        """v(s) for the player to move: max over moves a of -v(s after a)."""
         return self.values[_ttt(state).key]
 
     def move_values(self, state: TicTacToeState) -> dict[int, int]:

@@ -190,8 +190,11 @@ def train_game(
     """``policylab train selfplay-td|alphazero GAME --out DIR``; Ctrl-C keeps the checkpoint."""
     from policylab.games.registry import get_game
 
+    from policylab.games.runs import check_run
+
     g = get_game(game)
     run_dir = out or Path("runs") / f"{algo}-{g.name}-s{seed}"
+    check_run(run_dir, resume=resume)  # before any progress bar is drawn
     try:
         if algo == "selfplay-td":
             _train_td(g.name, run_dir, seed, resume, fields, progress)
@@ -203,7 +206,7 @@ def train_game(
         console.print(
             f"\ninterrupted; the last checkpoint is in {run_dir} (continue with --resume)"
         )
-        raise typer.Exit(130) from None
+        sys.exit(130)  # the shell convention for an interrupt
 
 
 def _train_td(

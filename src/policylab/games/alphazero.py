@@ -458,7 +458,7 @@ def train_alphazero(
     from policylab.deep.common.agent import _TorchThreads
     from policylab.deep.common.checkpoint import load_checkpoint, save_checkpoint, to_numpy_tree
     from policylab.deep.common.logging import RunLogger
-    from policylab.games.runs import CHECKPOINT, open_run, write_run_json
+    from policylab.games.runs import CHECKPOINT, open_run, trim_log, write_run_json
 
     g = get_game(game)
     with open_run(run_dir, resume=resume) as rd, _TorchThreads(1):  # small nets: 1 thread
@@ -470,6 +470,7 @@ def train_alphazero(
             if iterations is not None:
                 cfg = dataclasses.replace(cfg, iterations=iterations)
             done = int(meta["iteration"])
+            trim_log(rd, done)
         else:
             cfg = config or default_config(g)
             meta, tensors, done = {}, {}, 0

@@ -17,11 +17,37 @@ from typing import Any
 
 from policylab.exceptions import CheckpointError, InvalidArgumentError
 
-__all__ = ["CHECKPOINT", "RUN_JSON", "open_run", "read_run_json", "write_run_json"]
+__all__ = [
+    "CHECKPOINT",
+    "RUN_JSON",
+    "check_run",
+    "open_run",
+    "read_run_json",
+    "trim_log",
+    "write_run_json",
+]
 
 CHECKPOINT = "checkpoint.pt"
 RUN_JSON = "run.json"
 _LOCK = ".lock"
+
+
+def check_run(path: str | os.PathLike[str], *, resume: bool) -> None:
+    """Refuse a folder that holds a run (without ``resume``) or none (with it).
+
+    Raises:
+        InvalidArgumentError: If the folder holds a run and ``resume`` is False.
+        CheckpointError: If ``resume`` is True and the folder holds no checkpoint.
+    """
+    p = Path(path)
+    has_run = (p / CHECKPOINT).exists()
+    if has_run and not resume:
+        raise InvalidArgumentError(
+            f"{str(p)!r} already holds a run; pass --resume to continue it or --out for a new "
+            "folder"
+        )
+    if resume and not has_run:
+        raise CheckpointError(f"nothing to resume: {str(p)!r} holds no {CHECKPOINT}")
 
 
 @contextlib.contextmanager
@@ -34,14 +60,7 @@ def open_run(path: str | os.PathLike[str], *, resume: bool) -> Iterator[Path]:
         CheckpointError: If ``resume`` is True and the folder holds no checkpoint.
     """
     p = Path(path)
-    has_run = (p / CHECKPOINT).exists()
-    if has_run and not resume:
-        raise InvalidArgumentError(
-            f"{str(p)!r} already holds a run; pass --resume to continue it or --out for a new "
-            "folder"
-        )
-    if resume and not has_run:
-        raise CheckpointError(f"nothing to resume: {str(p)!r} holds no {CHECKPOINT}")
+    check_run(p, resume=resume)
     p.mkdir(parents=True, exist_ok=True)
     fd = os.open(p / _LOCK, os.O_RDWR | os.O_CREAT, 0o644)
     try:
@@ -83,3 +102,19 @@ def read_run_json(run_dir: Path) -> dict[str, Any]:
     if not isinstance(doc, dict) or "algo" not in doc or "game" not in doc:
         raise CheckpointError(f"{str(f)!r} does not name an algorithm and a game")
     return doc
+
+
+def trim_log(run_dir: Path, last_step: int) -> None:
+    """Drop the rows of ``progress.csv`` past ``last_step`` (written after the last checkpoint).
+
+    A resumed run then logs on from its checkpoint, so the log always matches it.
+    """
+    from policylab.deep.common.checkpoint import atomic_write_bytes
+
+    f = Path(run_dir) / "progress.csv"
+    if not f.exists():
+        return
+    lines = f.read_text().splitlines(keepends=True)
+    keep = lines[:1] + [ln for ln in lines[1:] if int(ln.split(",", 1)[0]) <= last_step]
+    if len(keep) != len(lines):
+        atomic_write_bytes(f, "".join(keep).encode())

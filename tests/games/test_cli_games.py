@@ -91,7 +91,7 @@ def test_train_selfplay_td_cli(tmp_path, capsys):
     assert json.loads((out_dir / "run.json").read_text())["episodes_done"] == 2000
     code, _, err = run(args, capsys)
     assert code == 2 and "already holds a run" in err
-    code, _, err = run([*args, "--set", "gamma=1"], capsys)
+    code, _, err = run([*args[:-2], str(tmp_path / "new"), "--set", "gamma=1"], capsys)
     assert code == 2 and "unknown selfplay-td setting" in err
     code, out, _ = run(
         ["arena", "tic-tac-toe", str(out_dir), "random", "--games", "4", "--json"], capsys

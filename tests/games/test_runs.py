@@ -12,15 +12,19 @@ from policylab.games.runs import open_run, trim_log
 
 
 def test_lock_refuses_a_second_holder(tmp_path):
-    with open_run(tmp_path / "r", resume=False):
-        with pytest.raises(InvalidArgumentError, match="in use by another process"):
-            with open_run(tmp_path / "r", resume=False):
-                pass
+    with (
+        open_run(tmp_path / "r", resume=False),
+        pytest.raises(InvalidArgumentError, match="in use by another process"),
+        open_run(tmp_path / "r", resume=False),
+    ):
+        pass
     with open_run(tmp_path / "r", resume=False):  # released after the block
         pass
-    with pytest.raises(CheckpointError, match="nothing to resume"):
-        with open_run(tmp_path / "empty", resume=True):
-            pass
+    with (
+        pytest.raises(CheckpointError, match="nothing to resume"),
+        open_run(tmp_path / "empty", resume=True),
+    ):
+        pass
 
 
 def test_trim_log_drops_rows_past_the_checkpoint(tmp_path):

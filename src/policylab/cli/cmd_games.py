@@ -189,7 +189,6 @@ def train_game(
 ) -> None:
     """``policylab train selfplay-td|alphazero GAME --out DIR``; Ctrl-C keeps the checkpoint."""
     from policylab.games.registry import get_game
-
     from policylab.games.runs import check_run
 
     g = get_game(game)

@@ -29,7 +29,10 @@ S = TypeVar("S", bound="GameState")
 class GameState(ABC):
     """One position of a game; immutable (``play`` returns a new position)."""
 
-    __slots__ = ()
+    __slots__ = ("_moves", "_winner")
+
+    _moves: tuple[int, ...]
+    _winner: int | None
 
     @property
     @abstractmethod
@@ -37,14 +40,19 @@ class GameState(ABC):
         """The game this position belongs to."""
 
     @property
-    @abstractmethod
     def moves(self) -> tuple[int, ...]:
         """The actions played from the first position to this one (0-indexed)."""
+        return self._moves
 
     @property
     def player(self) -> int:
         """The player to move: 0 (moved first) or 1."""
-        return len(self.moves) % 2
+        return len(self._moves) & 1
+
+    @property
+    def winner(self) -> int | None:
+        """The player who has won, or None (game going on, or drawn)."""
+        return self._winner
 
     @abstractmethod
     def legal_actions(self) -> tuple[int, ...]:
@@ -53,11 +61,6 @@ class GameState(ABC):
     @abstractmethod
     def _apply(self: S, action: int) -> S:
         """The position after a legal ``action`` (checked by :meth:`play`)."""
-
-    @property
-    @abstractmethod
-    def winner(self) -> int | None:
-        """The player who has won, or None (game going on, or drawn)."""
 
     @abstractmethod
     def is_full(self) -> bool:

@@ -35,7 +35,7 @@ def has_four(bits: int) -> bool:
 class ConnectFourState(GameState):
     """A Connect Four position as (``current``, ``mask``) bitboards plus its move list."""
 
-    __slots__ = ("_moves", "_winner", "current", "mask")
+    __slots__ = ("current", "mask")
 
     def __init__(
         self,
@@ -53,21 +53,6 @@ class ConnectFourState(GameState):
     def game(self) -> Game:
         """The game: Connect Four."""
         return CONNECT_FOUR
-
-    @property
-    def moves(self) -> tuple[int, ...]:
-        """The columns played so far, 0-indexed, in order."""
-        return self._moves
-
-    @property
-    def player(self) -> int:
-        """0 (moved first, 'X') or 1 ('O')."""
-        return len(self._moves) & 1
-
-    @property
-    def winner(self) -> int | None:
-        """The player with four in a line, or None."""
-        return self._winner
 
     def is_full(self) -> bool:
         """True when all 42 cells hold a stone."""

@@ -37,7 +37,7 @@ def _has_line(bits: int) -> bool:
 class TicTacToeState(GameState):
     """A tic-tac-toe position: the cells of X and of O as bit masks."""
 
-    __slots__ = ("_moves", "_winner", "o", "x")
+    __slots__ = ("o", "x")
 
     def __init__(self, x: int = 0, o: int = 0, moves: tuple[int, ...] = ()) -> None:
         self.x = x
@@ -49,21 +49,6 @@ class TicTacToeState(GameState):
     def game(self) -> Game:
         """The game: tic-tac-toe."""
         return TIC_TAC_TOE
-
-    @property
-    def moves(self) -> tuple[int, ...]:
-        """The cells played so far, 0-indexed, in order."""
-        return self._moves
-
-    @property
-    def player(self) -> int:
-        """0 (X) or 1 (O)."""
-        return len(self._moves) & 1
-
-    @property
-    def winner(self) -> int | None:
-        """0 if X has three in a line, 1 if O has, else None."""
-        return self._winner
 
     def is_full(self) -> bool:
         """True when all nine cells are taken."""

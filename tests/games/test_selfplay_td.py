@@ -7,6 +7,7 @@ import pytest
 
 from policylab.exceptions import CheckpointError, InvalidArgumentError
 from policylab.games import TIC_TAC_TOE, make_player, solve_tic_tac_toe
+from policylab.games.arena import worst_outcome
 from policylab.games.learned import train_selfplay_td
 from policylab.games.selfplay_td import SelfPlayTDConfig, position_code
 
@@ -18,23 +19,14 @@ def trained(tmp_path_factory):
     return run, player
 
 
-def _worst_outcome(player, s, me, opponent_moves):
-    """The learner's worst result over every line of the opponent's allowed moves."""
-    if s.is_terminal():
-        return s.outcome(me)
-    if s.player == me:
-        return _worst_outcome(player, s.play(player.choose(s)), me, opponent_moves)
-    return min(_worst_outcome(player, s.play(a), me, opponent_moves) for a in opponent_moves(s))
-
-
 @pytest.mark.parametrize("me", [0, 1])
 def test_never_loses_to_perfect_play_first_or_second(trained, me):
     _, player = trained
     sol = solve_tic_tac_toe()
     # every line of the perfect player (each of its optimal moves): always a draw
-    assert _worst_outcome(player, TIC_TAC_TOE.initial(), me, sol.best_moves) == 0.0
+    assert worst_outcome(player, TIC_TAC_TOE.initial(), me, sol.best_moves) == 0.0
     # and it never loses against any opponent at all (every legal move of the other side)
-    assert _worst_outcome(player, TIC_TAC_TOE.initial(), me, lambda s: s.legal_actions()) >= 0.0
+    assert worst_outcome(player, TIC_TAC_TOE.initial(), me, lambda s: s.legal_actions()) >= 0.0
 
 
 def test_run_folder_player_and_refusals(trained):

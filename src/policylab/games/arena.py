@@ -10,7 +10,7 @@ from policylab.exceptions import InvalidArgumentError
 from policylab.games.base import Game, GameState
 from policylab.games.players import Player
 
-__all__ = ["ArenaResult", "arena", "play_game", "wilson_interval"]
+__all__ = ["ArenaResult", "arena", "play_game", "wilson_interval", "worst_outcome"]
 
 
 def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
@@ -64,6 +64,27 @@ def play_game(first: Player, second: Player, start: GameState) -> GameState:
     while not s.is_terminal():
         s = s.play(players[s.player].choose(s))
     return s
+
+
+def worst_outcome(
+    player: Player,
+    start: GameState,
+    me: int,
+    opponent_moves: Callable[[GameState], tuple[int, ...]],
+) -> float:
+    """``player``'s worst result (as ``me``) over every line of the opponent's allowed moves.
+
+    ``player`` must be deterministic; ``opponent_moves`` gives the moves the opponent may
+    make in a position: every legal move, or (with :func:`~policylab.games.best_moves`)
+    every optimal one, so that 0 means "never loses to perfect play".
+    """
+    if start.is_terminal():
+        return start.outcome(me)
+    if start.player == me:
+        return worst_outcome(player, start.play(player.choose(start)), me, opponent_moves)
+    return min(
+        worst_outcome(player, start.play(a), me, opponent_moves) for a in opponent_moves(start)
+    )
 
 
 def arena(

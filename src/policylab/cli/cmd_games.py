@@ -90,8 +90,13 @@ def arena_command(
 def play_command(
     game: GameArg,
     against: Annotated[
-        str, typer.Option("--against", help="Your opponent (see arena).")
-    ] = "perfect",
+        str | None,
+        typer.Option(
+            "--against",
+            help="Your opponent (see arena); default perfect on tic-tac-toe, mcts:2000 on "
+            "connect-four (the solver is slow in the opening).",
+        ),
+    ] = None,
     second: Annotated[bool, typer.Option("--second", help="Let the opponent move first.")] = False,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the opponent.")] = 0,
 ) -> None:
@@ -100,7 +105,8 @@ def play_command(
     from policylab.games.registry import get_game
 
     g = get_game(game)
-    opponent = make_player(against, g, seed)
+    spec = against or ("perfect" if g.name == "tic-tac-toe" else "mcts:2000")
+    opponent = make_player(spec, g, seed)
     me = 1 if second else 0
     s = g.initial()
     names = g.player_names

@@ -18,7 +18,8 @@ __all__ = ["MCTSPlayer", "PerfectPlayer", "Player", "RandomPlayer", "make_player
 
 PLAYER_HELP = (
     "random (uniform over legal moves), perfect (the exact solver; a random one of the "
-    "optimal moves), mcts:N (UCT with N random-rollout simulations per move), or a run "
+    "optimal moves; on Connect Four slow before about 10 stones), mcts:N (UCT with N "
+    "random-rollout simulations per move), or a run "
     "folder written by `policylab train selfplay-td|alphazero GAME`"
 )
 

@@ -26,7 +26,10 @@ _TRAIN_HELP = (
     "The run folder (--out) gets run.json, progress.csv, TensorBoard events (tb/) and "
     "checkpoint.pt, which `policylab eval` and `policylab record` read and --resume continues.\n\n"
     "Config fields (a JSON or TOML table in --config, or --set FIELD=VALUE) are those of "
-    "policylab.deep.PPOConfig / DQNConfig; --dry-run lists them with their values and meaning."
+    "policylab.deep.PPOConfig / DQNConfig; --dry-run lists them with their values and meaning.\n\n"
+    "Board games: `train selfplay-td tic-tac-toe --out DIR` (Sutton & Barto's self-play TD "
+    "learner) and `train alphazero tic-tac-toe|connect-four --out DIR` (--set FIELD=VALUE "
+    "over policylab.games.alphazero.AlphaZeroConfig)."
 )
 
 

@@ -22,12 +22,6 @@ __all__ = ["GAME_LEARNERS", "register", "solve_game", "train_game"]
 GAME_LEARNERS = ("selfplay-td", "alphazero")
 
 
-def _players_help() -> str:
-    from policylab.games.players import PLAYER_HELP
-
-    return PLAYER_HELP
-
-
 GameArg = Annotated[str, typer.Argument(help="The game: tic-tac-toe or connect-four.")]
 
 
@@ -46,8 +40,8 @@ def arena_command(
 ) -> None:
     """Play games between two players, colours alternating; wins, draws, losses from A's view.
 
-    Players: random, perfect, mcts:N (UCT with N random-rollout simulations), or a run
-    folder of `policylab train selfplay-td|alphazero GAME`.
+    Players: random, perfect, mcts:N (UCT with N random-rollout simulations), or a
+    run folder of `policylab train selfplay-td|alphazero GAME`.
     """
     import numpy as np
     from rich.progress import Progress

@@ -307,7 +307,7 @@ class PUCT:
                 s = node.state
                 acts = np.array(s.legal_actions())
                 q = np.where(node.n[acts] > 0, node.w[acts] / np.maximum(node.n[acts], 1), 0.0)
-                u = self.c_puct * node.p[acts] * math.sqrt(node.n.sum() + 1e-8) / (1 + node.n[acts])
+                u = self.c_puct * node.p[acts] * math.sqrt(max(node.n.sum(), 1.0)) / (1 + node.n[acts])
                 a = int(acts[int(np.argmax(q + u))])
                 path.append((node, a))
                 child = node.children.get(a)

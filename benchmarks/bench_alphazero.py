@@ -108,7 +108,8 @@ def main() -> None:
     body = (
         f"AlphaZero on tic-tac-toe with the default settings ({doc['config']['iterations']} "
         f"iterations of {doc['config']['games_per_iteration']} self-play games, "
-        f"{doc['config']['simulations']} PUCT simulations per move; {how}). "
+        f"{doc['config']['simulations']} PUCT simulations per move, a new network kept when it "
+        f"scores at least {doc['config']['accept_score']} against the best; {how}). "
         "Worst result over every line of play (exhaustive), -1 a loss, 0 a draw:\n\n"
         "| AlphaZero moves | against every line of perfect play | against every opponent |\n"
         "|---|---:|---:|\n" + "\n".join(rows) + "\n\n"

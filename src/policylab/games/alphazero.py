@@ -164,6 +164,7 @@ def default_config(game: str | Game, **overrides: Any) -> AlphaZeroConfig:
             channels=32,
             blocks=2,
             eval_games=10,
+            accept_score=0.5,  # good players draw every game: a draw-level score is enough
         )
     known = {f.name for f in dataclasses.fields(AlphaZeroConfig)}
     bad = set(overrides) - known
@@ -307,7 +308,12 @@ class PUCT:
                 s = node.state
                 acts = np.array(s.legal_actions())
                 q = np.where(node.n[acts] > 0, node.w[acts] / np.maximum(node.n[acts], 1), 0.0)
-                u = self.c_puct * node.p[acts] * math.sqrt(max(node.n.sum(), 1.0)) / (1 + node.n[acts])
+                u = (
+                    self.c_puct
+                    * node.p[acts]
+                    * math.sqrt(max(node.n.sum(), 1.0))
+                    / (1 + node.n[acts])
+                )
                 a = int(acts[int(np.argmax(q + u))])
                 path.append((node, a))
                 child = node.children.get(a)

@@ -83,3 +83,5 @@ def test_config_errors():
         default_config("tic-tac-toe", simulations=0)
     with pytest.raises(InvalidArgumentError, match="noise_fraction"):
         default_config("connect-four", noise_fraction=2.0)
+    with pytest.raises(InvalidArgumentError, match="random_openings"):
+        default_config("tic-tac-toe", random_openings=1.5)

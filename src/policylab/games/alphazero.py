@@ -76,6 +76,8 @@ class AlphaZeroConfig:
         dirichlet_alpha: Concentration of the root noise.
         noise_fraction: Share eps of noise in the root priors.
         temperature_moves: Moves of each self-play game sampled at temperature 1.
+        random_openings: Share of self-play games that open with one uniformly random
+            move per player (the lines a strong player rarely picks get visited too).
         replay_games: Recent games kept for training.
         train_steps: Minibatch updates per iteration.
         batch_size: Positions per minibatch.
@@ -97,6 +99,7 @@ class AlphaZeroConfig:
     dirichlet_alpha: float = 1.0
     noise_fraction: float = 0.25
     temperature_moves: int = 10
+    random_openings: float = 0.0
     replay_games: int = 2000
     train_steps: int = 300
     batch_size: int = 256
@@ -131,7 +134,11 @@ class AlphaZeroConfig:
             v = getattr(self, name)
             if not isinstance(v, int) or v < 0:
                 raise InvalidArgumentError(f"alphazero: {name} must be an integer >= 0; got {v!r}")
-        for name, lo, hi in (("noise_fraction", 0, 1), ("accept_score", 0, 1)):
+        for name, lo, hi in (
+            ("noise_fraction", 0, 1),
+            ("accept_score", 0, 1),
+            ("random_openings", 0, 1),
+        ):
             v = getattr(self, name)
             if not lo <= v <= hi:
                 raise InvalidArgumentError(f"alphazero: {name} must be in [{lo}, {hi}]; got {v!r}")
@@ -165,6 +172,7 @@ def default_config(game: str | Game, **overrides: Any) -> AlphaZeroConfig:
             blocks=2,
             eval_games=10,
             accept_score=0.5,  # good players draw every game: a draw-level score is enough
+            random_openings=0.5,
         )
     known = {f.name for f in dataclasses.fields(AlphaZeroConfig)}
     bad = set(overrides) - known
@@ -386,6 +394,9 @@ def play_selfplay_game(
     rng = np.random.default_rng(seed)
     search = PUCT(evaluate, cfg.simulations, cfg.c_puct)
     s = game.initial()
+    if rng.random() < cfg.random_openings:
+        for _ in range(2):
+            s = s.play(int(rng.choice(s.legal_actions())))
     planes, pis, players = [], [], []
     while not s.is_terminal():
         counts = search.visit_counts(s, (cfg.dirichlet_alpha, cfg.noise_fraction), rng)

@@ -55,7 +55,10 @@ _TRAIN_HELP = (
     "rate then continues from the value it had reached down to 0 at the new end (a run "
     "annealed to 0 is not extended).\n\n"
     "Config fields (a JSON or TOML table in --config, or --set FIELD=VALUE) are those of "
-    "policylab.deep.PPOConfig / DQNConfig; --dry-run lists them with their values and meaning."
+    "policylab.deep.PPOConfig / DQNConfig; --dry-run lists them with their values and meaning.\n\n"
+    "Board games: `train selfplay-td tic-tac-toe --out DIR` (Sutton & Barto's self-play TD "
+    "learner) and `train alphazero tic-tac-toe|connect-four --out DIR` (--set FIELD=VALUE "
+    "over policylab.games.alphazero.AlphaZeroConfig)."
 )
 
 
@@ -73,7 +76,9 @@ def _parse_set(items: list[str]) -> dict[str, Any]:
 
 
 def train_command(
-    algo: Annotated[str, typer.Argument(help="Algorithm: ppo or dqn.")],
+    algo: Annotated[
+        str, typer.Argument(help="Algorithm: ppo or dqn; board games: selfplay-td, alphazero.")
+    ],
     env_id: Annotated[
         str,
         typer.Argument(
@@ -161,6 +166,18 @@ def _train(
     progress: bool,
     as_json: bool,
 ) -> None:
+    from policylab.cli.cmd_games import GAME_LEARNERS, train_game
+
+    if algo.lower() in GAME_LEARNERS:  # board games: train selfplay-td|alphazero GAME
+        return train_game(
+            algo.lower(),
+            env_id,
+            out=out,
+            seed=seed,
+            resume=resume,
+            fields=_parse_set(set_ or []),
+            progress=progress,
+        )
     import numpy as np
 
     from policylab.deep.common.agent import CHECKPOINT, RUN_MARKERS

@@ -12,7 +12,7 @@ import typer
 from rich.table import Table
 
 from policylab.cli.common import console, emit_table, fmt_label, load_problem, print_json
-from policylab.exceptions import InvalidPolicyError
+from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
 from policylab.validation import (
     check_choice,
     check_count,
@@ -90,8 +90,30 @@ def solve_command(
     json_out: JsonOpt = False,
     plot: PlotOpt = None,
     max_rows: RowsOpt = 60,
+    position: Annotated[
+        str | None,
+        typer.Option(
+            "--position",
+            help="tic-tac-toe / connect-four only: the moves played (cells 1-9 or columns "
+            "1-7), e.g. 4455.",
+        ),
+    ] = None,
 ) -> None:
-    """Solve a problem exactly: optimal values v_* and an optimal policy pi_*."""
+    """Solve a problem exactly: optimal values v_* and an optimal policy pi_*.
+
+    Board games: `solve tic-tac-toe [--position MOVES]` gives the value and optimal moves,
+    `solve connect-four --position MOVES` the score in Pascal Pons' convention.
+    """
+    from policylab.games.registry import is_game
+
+    if is_game(problem):
+        from policylab.cli.cmd_games import solve_game
+
+        return solve_game(problem, position, json_out)
+    if position is not None:
+        raise InvalidArgumentError(
+            f"--position is for the board games (tic-tac-toe, connect-four); {problem!r} is not one"
+        )
     from policylab.planning import solve
 
     plot, tol = _check_outputs(plot, max_rows), check_positive(tol, "--tol")

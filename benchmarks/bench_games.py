@@ -1,0 +1,150 @@
+"""Board games: Connect Four solver speed by game stage, and UCT simulations per second.
+
+* The exact Connect Four solver (compiled negamax, alpha-beta on null windows,
+  transposition table, move ordering) on positions with 10, 20 and 30 stones. The
+  positions come from seeded "sensible random" games: each move is uniform among
+  the moves that neither win at once nor let the opponent win at once, and a
+  position is kept only if the player to move cannot win at once (so no position
+  is solved by a one-move check). Each position gets a fresh transposition table.
+* UCT with random rollouts on Connect Four: simulations per second from the empty
+  board and from a 10-stone position, policylab's ``UCT`` against OpenSpiel's C++
+  ``MCTSBot`` with a ``RandomRolloutEvaluator`` (one rollout per leaf, the same
+  exploration constant), in the same run, where the ``bench`` extra is installed.
+
+Run: ``python benchmarks/bench_games.py`` (or ``make bench BENCH=games``).
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np
+
+from policylab.games import CONNECT_FOUR, UCT, ConnectFourSolver
+from policylab.games.connect_four import ConnectFourState
+
+sys.path.insert(0, os.path.dirname(__file__))
+from _report import write_section
+
+POSITIONS = {30: 10, 20: 10, 10: 6}
+C_UCT = 1.4
+
+
+def _wins_now(s: ConnectFourState) -> bool:
+    return any(s.play(a).winner is not None for a in s.legal_actions())
+
+
+def sensible_position(stones: int, rng: np.random.Generator) -> ConnectFourState | None:
+    """A position after ``stones`` moves of sensible random play, or None if that failed."""
+    s = CONNECT_FOUR.initial()
+    while len(s.moves) < stones:
+        safe = [
+            a for a in s.legal_actions() if s.play(a).winner is None and not _wins_now(s.play(a))
+        ]
+        if not safe:
+            return None
+        s = s.play(int(rng.choice(safe)))
+    return None if s.is_terminal() or _wins_now(s) else s
+
+
+def solver_rows() -> list[str]:
+    rng = np.random.default_rng(2026)
+    ConnectFourSolver(table_size=1009).score(CONNECT_FOUR.from_moves("4455"))  # compile
+    rows = []
+    for stones, count in POSITIONS.items():
+        times, nodes, scores = [], [], []
+        while len(times) < count:
+            s = sensible_position(stones, rng)
+            if s is None:
+                continue
+            solver = ConnectFourSolver()
+            sc, dt, n = solver.timed_score(s)
+            times.append(dt)
+            nodes.append(n)
+            scores.append(sc)
+            print(
+                f"  {stones} stones {s.position_string()}: score {sc}, {dt:.3f} s, {n:,} nodes",
+                flush=True,
+            )
+        rows.append(
+            f"| {stones} | {count} | {statistics.median(times):.4f} | {statistics.mean(times):.4f} "
+            f"| {max(times):.4f} | {statistics.mean(nodes):,.0f} "
+            f"| {sum(nodes) / max(sum(times), 1e-9):,.0f} | {min(scores)}..{max(scores)} |"
+        )
+    return rows
+
+
+def ours_sims_per_second(state: ConnectFourState, sims: int) -> float:
+    UCT(50, c=C_UCT, seed=0).choose(state)  # compile the rollout
+    best = 0.0
+    for rep in range(3):
+        t0 = time.perf_counter()
+        UCT(sims, c=C_UCT, seed=rep).visit_counts(state)
+        best = max(best, sims / (time.perf_counter() - t0))
+    return best
+
+
+def openspiel_sims_per_second(moves: str, sims: int) -> float | None:
+    try:
+        import pyspiel
+    except ImportError:
+        return None
+    game = pyspiel.load_game("connect_four")
+    best = 0.0
+    for rep in range(3):
+        state = game.new_initial_state()
+        for ch in moves:
+            state.apply_action(int(ch) - 1)
+        evaluator = pyspiel.RandomRolloutEvaluator(1, rep)
+        bot = pyspiel.MCTSBot(game, evaluator, C_UCT, sims, 1000, False, rep, False)
+        t0 = time.perf_counter()
+        bot.step(state)
+        best = max(best, sims / (time.perf_counter() - t0))
+    return best
+
+
+def main() -> None:
+    load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    print("Connect Four solver:", flush=True)
+    rows = solver_rows()
+    sims = 5000
+    mcts_rows = []
+    for label, moves in (("empty board", ""), ("10 stones (4453432253)", "4453432253")):
+        state = CONNECT_FOUR.from_moves(moves)
+        ours = ours_sims_per_second(state, sims)
+        theirs = openspiel_sims_per_second(moves, sims)
+        ratio = "-" if theirs is None else f"{ours / theirs:.2f}"
+        theirs_s = "not installed" if theirs is None else f"{theirs:,.0f}"
+        mcts_rows.append(f"| {label} | {ours:,.0f} | {theirs_s} | {ratio} |")
+        print(f"  UCT {label}: policylab {ours:,.0f}/s, OpenSpiel {theirs_s}/s", flush=True)
+    load_after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    body = (
+        "Exact Connect Four solver (Pascal Pons' score convention), positions from sensible "
+        "random play (no move wins or loses at once; the player to move cannot win at once), "
+        "a fresh 8M-entry transposition table per position, one core:\n\n"
+        "| stones | positions | median s | mean s | max s | mean nodes | nodes/s | scores |\n"
+        "|---:|---:|---:|---:|---:|---:|---:|---|\n"
+        + "\n".join(rows)
+        + f"\n\nUCT with random rollouts on Connect Four, {sims} simulations per move, "
+        f"exploration constant {C_UCT}, best of 3 searches, in the same run: policylab's `UCT` "
+        "(Python tree, compiled rollouts) against OpenSpiel's C++ `MCTSBot` with a "
+        "`RandomRolloutEvaluator` (one rollout per leaf).\n\n"
+        "| position | policylab sims/s | OpenSpiel C++ sims/s | policylab / OpenSpiel |\n"
+        "|---|---:|---:|---:|\n"
+        + "\n".join(mcts_rows)
+        + f"\n\nLoad (`uptime`) before: `{load}`; after: `{load_after}`. The machine (2 cores) "
+        "was shared with other developers' jobs while this ran, so absolute times are "
+        "pessimistic; the two libraries in one table ran side by side under the same load."
+    )
+    write_section("Board games (Connect Four)", "python benchmarks/bench_games.py", body)
+    print(body)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,97 @@
+"""UCT, players and the arena."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from policylab.exceptions import InvalidArgumentError
+from policylab.games import (
+    CONNECT_FOUR,
+    TIC_TAC_TOE,
+    UCT,
+    arena,
+    make_player,
+    solve_tic_tac_toe,
+    wilson_interval,
+)
+from policylab.games.mcts import rollout_outcome
+
+
+def test_uct_finds_wins_and_blocks():
+    # X to move wins at once in column 1 (three stacked)
+    assert UCT(300, seed=0).choose(CONNECT_FOUR.from_moves("121212")) == 0
+    # O to move must block column 1
+    assert UCT(1000, seed=0).choose(CONNECT_FOUR.from_moves("12121")) == 0
+    # tic-tac-toe: X (1, 2 vs O 5, 7) wins at 3
+    assert UCT(500, seed=1).choose(TIC_TAC_TOE.from_moves("1527")) == 2
+
+
+def test_uct_same_seed_same_counts_and_visits_add_up():
+    s = CONNECT_FOUR.from_moves("44")
+    a = UCT(200, seed=3).visit_counts(s)
+    assert np.array_equal(a, UCT(200, seed=3).visit_counts(s)) and a.sum() == 200
+
+
+def test_uct_plays_tictactoe_near_perfectly():
+    """With 2000 simulations UCT picks an optimal move in most positions it can meet."""
+    sol = solve_tic_tac_toe()
+    uct = UCT(2000, seed=0)
+    rng = np.random.default_rng(0)
+    ok = total = 0
+    for _ in range(30):
+        s = TIC_TAC_TOE.initial()
+        for _ in range(int(rng.integers(0, 6))):
+            if s.is_terminal():
+                break
+            s = s.play(int(rng.choice(s.legal_actions())))
+        if s.is_terminal():
+            continue
+        total += 1
+        ok += uct.choose(s) in sol.best_moves(s)
+    assert ok >= 0.9 * total
+
+
+def test_rollout_outcome_is_an_outcome():
+    rng = np.random.default_rng(0)
+    vals = {rollout_outcome(CONNECT_FOUR.initial(), rng) for _ in range(200)}
+    assert vals <= {-1.0, 0.0, 1.0} and {-1.0, 1.0} <= vals
+    assert rollout_outcome(CONNECT_FOUR.from_moves("1212121"), rng) == -1.0  # O to move, lost
+
+
+def test_arena_alternates_colours_and_counts():
+    g = TIC_TAC_TOE
+    res = arena(g, make_player("perfect", g, 0), make_player("perfect", g, 1), 10)
+    assert (res.wins, res.draws, res.losses, res.games) == (0, 10, 0, 10)
+    res = arena(g, make_player("perfect", g, 0), make_player("random", g, 1), 40)
+    assert res.losses == 0 and res.wins > 20
+    assert res.to_json() == {"wins": res.wins, "draws": res.draws, "losses": 0, "games": 40}
+    # random against perfect: mirror image
+    res2 = arena(g, make_player("random", g, 1), make_player("perfect", g, 0), 40)
+    assert res2.wins == 0
+
+
+def test_wilson_interval_known_values():
+    lo, hi = wilson_interval(0, 10)
+    assert lo == 0.0 and hi == pytest.approx(0.2775, abs=1e-4)
+    lo, hi = wilson_interval(5, 10)
+    assert (lo, hi) == (pytest.approx(0.2366, abs=1e-4), pytest.approx(0.7634, abs=1e-4))
+
+
+def test_player_spec_errors(tmp_path):
+    with pytest.raises(InvalidArgumentError, match="unknown player 'alphago'"):
+        make_player("alphago", TIC_TAC_TOE)
+    with pytest.raises(InvalidArgumentError, match="positive number of simulations"):
+        make_player("mcts:0", TIC_TAC_TOE)
+    with pytest.raises(InvalidArgumentError, match="positive number of simulations"):
+        make_player("mcts:ten", TIC_TAC_TOE)
+    with pytest.raises(InvalidArgumentError, match="finished game"):
+        UCT(10).choose(TIC_TAC_TOE.from_moves("14253"))
+    with pytest.raises(InvalidArgumentError, match="--games"):
+        arena(
+            TIC_TAC_TOE, make_player("random", TIC_TAC_TOE), make_player("random", TIC_TAC_TOE), 0
+        )
+    from policylab.exceptions import CheckpointError
+
+    with pytest.raises(CheckpointError, match="not a game learner's run folder"):
+        make_player(str(tmp_path), TIC_TAC_TOE)

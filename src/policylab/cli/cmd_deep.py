@@ -175,7 +175,7 @@ def _train(
             out=out,
             seed=seed,
             resume=resume,
-            fields=_parse_set(set_ or []),
+            fields=_parse_set(set_items),
             progress=progress,
         )
     import numpy as np

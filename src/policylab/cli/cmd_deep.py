@@ -173,7 +173,7 @@ def _train(
             algo.lower(),
             env_id,
             out=out,
-            seed=seed,
+            seed=0 if seed is None else seed,
             resume=resume,
             fields=_parse_set(set_items),
             progress=progress,

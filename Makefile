@@ -11,7 +11,7 @@ venv: $(STAMP)
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[deep,dev]'
+	$(PY) -m pip install --quiet -e '.[deep,dev,mujoco]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -21,7 +21,7 @@ test: $(STAMP)
 	$(PY) -m pytest -n 2 --dist loadfile
 
 bench: $(STAMP)
-	$(PY) -m pip install --quiet -e '.[deep,dev,bench]'
+	$(PY) -m pip install --quiet -e '.[deep,dev,mujoco,bench]'
 	$(PY) benchmarks/run.py $(BENCH)
 
 lint: $(STAMP)

@@ -1,4 +1,4 @@
-"""Deep RL with PyTorch: DQN and PPO on any Gymnasium environment.
+"""Deep RL with PyTorch: DQN, PPO, SAC and TD3 on any Gymnasium environment.
 
 Imported lazily (``import policylab`` does not import torch; ``policylab.deep`` does)::
 
@@ -34,6 +34,8 @@ from policylab.deep.common import (
 from policylab.deep.dqn import DQN, DQNConfig
 from policylab.deep.io import load
 from policylab.deep.ppo import PPO, PPOConfig
+from policylab.deep.sac import SAC, SACConfig
+from policylab.deep.td3 import TD3, TD3Config
 from policylab.deep.zoo import ALGORITHMS, default_config
 
 __all__ = [
@@ -41,6 +43,8 @@ __all__ = [
     "DQN",
     "MLP",
     "PPO",
+    "SAC",
+    "TD3",
     "Agent",
     "DQNConfig",
     "NatureCNN",
@@ -52,6 +56,8 @@ __all__ = [
     "RolloutBuffer",
     "RunLogger",
     "RunningMeanStd",
+    "SACConfig",
+    "TD3Config",
     "TrainingProgress",
     "default_config",
     "evaluate",

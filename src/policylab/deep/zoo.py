@@ -14,11 +14,13 @@ from policylab.deep.common.agent import Agent
 from policylab.deep.common.envs import is_atari_id
 from policylab.deep.dqn.agent import DQN
 from policylab.deep.ppo.agent import PPO
+from policylab.deep.sac.agent import SAC
+from policylab.deep.td3.agent import TD3
 from policylab.exceptions import InvalidArgumentError
 
 __all__ = ["ALGORITHMS", "TUNED", "ZOO", "default_config"]
 
-ALGORITHMS: dict[str, type[Agent]] = {"ppo": PPO, "dqn": DQN}
+ALGORITHMS: dict[str, type[Agent]] = {"ppo": PPO, "dqn": DQN, "sac": SAC, "td3": TD3}
 
 # "steps" is the zoo's n_timesteps; "normalize" is VecNormalize (observations and rewards).
 ZOO: dict[str, dict[str, dict[str, Any]]] = {

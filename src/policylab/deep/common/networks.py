@@ -6,6 +6,7 @@ fixes the network without touching torch's global random state.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 
@@ -16,7 +17,15 @@ from torch import nn
 
 from policylab.exceptions import InvalidArgumentError
 
-__all__ = ["MLP", "NatureCNN", "build_torso", "clip_grad_norm", "init_layer", "is_image_space"]
+__all__ = [
+    "MLP",
+    "NatureCNN",
+    "TwinQNetwork",
+    "build_torso",
+    "clip_grad_norm",
+    "init_layer",
+    "is_image_space",
+]
 
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 
@@ -180,3 +189,63 @@ def clip_grad_norm(params: Sequence[torch.Tensor], max_norm: float) -> float:
     coef = torch.clamp(max_norm / (norm + 1e-6), max=1.0)
     torch._foreach_mul_(grads, coef)
     return float(norm)
+
+
+class TwinQNetwork(nn.Module):
+    """Two critics Q_1(s, a), Q_2(s, a) evaluated together (SAC, TD3).
+
+    Each layer of the two MLPs is one (2, in, out) weight tensor, so both critics run as
+    one batched matrix product per layer (``torch.baddbmm``): half the kernel launches
+    of two separate networks, with the same arithmetic. Weights are orthogonal (gain
+    sqrt(2) in hidden layers, 1 at the output), biases zero.
+
+    Args:
+        obs_dim: Observation features.
+        action_dim: Action dimensions.
+        hidden: Hidden layer sizes of each critic.
+        act: Activation name (tanh, relu, elu).
+        generator: Generator of the initial weights.
+    """
+
+    def __init__(
+        self,
+        obs_dim: int,
+        action_dim: int,
+        hidden: Sequence[int],
+        act: str = "relu",
+        generator: torch.Generator | None = None,
+    ) -> None:
+        super().__init__()
+        dims = [obs_dim + action_dim, *hidden, 1]
+        self.weights = nn.ParameterList()
+        self.biases = nn.ParameterList()
+        for i, (d_in, d_out) in enumerate(itertools.pairwise(dims)):
+            w = torch.empty(2, d_in, d_out)
+            gain = 1.0 if i == len(dims) - 2 else math.sqrt(2)
+            for k in range(2):  # orthogonal init acts on (out, in) matrices
+                w[k] = nn.init.orthogonal_(torch.empty(d_out, d_in), gain, generator).T
+            self.weights.append(nn.Parameter(w))
+            self.biases.append(nn.Parameter(torch.zeros(2, 1, d_out)))
+        self.act = activation(act)()
+
+    def forward(
+        self,
+        obs: torch.Tensor,
+        actions: torch.Tensor,
+        params: Sequence[torch.Tensor] | None = None,
+    ) -> torch.Tensor:
+        """(2, B) Q_1(s, a) and Q_2(s, a) for a batch of (B, obs_dim) and (B, action_dim).
+
+        ``params`` (weights then biases, as :meth:`parameters` orders them) evaluates the
+        critics with other tensors, e.g. detached ones, so that an actor's loss gets no
+        critic weight gradients.
+        """
+        ps = list(self.parameters()) if params is None else list(params)
+        n = len(ps) // 2
+        x = torch.cat([obs.reshape(len(obs), -1), actions], dim=1)
+        h = x.unsqueeze(0).expand(2, -1, -1)
+        for i in range(n):
+            h = torch.baddbmm(ps[n + i], h, ps[i])
+            if i < n - 1:
+                h = self.act(h)
+        return h.squeeze(-1)

@@ -31,6 +31,7 @@ from policylab.deep.common import (
     n_step_targets,
     save_checkpoint,
 )
+from policylab.deep.common.walking import WalkingReward, walking_reward, walking_vec_env
 from policylab.deep.dqn import DQN, DQNConfig
 from policylab.deep.io import load
 from policylab.deep.ppo import PPO, PPOConfig
@@ -59,6 +60,7 @@ __all__ = [
     "SACConfig",
     "TD3Config",
     "TrainingProgress",
+    "WalkingReward",
     "default_config",
     "evaluate",
     "gae_advantages",
@@ -68,4 +70,6 @@ __all__ = [
     "make_vec_env",
     "n_step_targets",
     "save_checkpoint",
+    "walking_reward",
+    "walking_vec_env",
 ]

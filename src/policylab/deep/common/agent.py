@@ -40,6 +40,7 @@ from policylab.deep.common.envs import (
 )
 from policylab.deep.common.logging import RunLogger, TrainingProgress
 from policylab.deep.common.normalize import ObservationNormalizer
+from policylab.deep.common.walking import reward_description
 from policylab.exceptions import CheckpointError, InvalidArgumentError
 
 __all__ = ["Agent", "BaseConfig", "Callback"]
@@ -309,6 +310,7 @@ class Agent(ABC):
         doc = {
             "algo": self.algo, "env_id": self.env_id, "total_steps": self.target_steps,
             "config": _jsonable(dataclasses.asdict(self.config)),
+            "reward": reward_description(self._envs),
         }  # fmt: skip
         atomic_write_bytes(run_dir / RUN_JSON, (json.dumps(doc, indent=2) + "\n").encode())
 

@@ -19,14 +19,15 @@ from policylab.exceptions import InvalidArgumentError
 __all__ = ["register"]
 
 _TRAIN_HELP = (
-    "Train a deep RL agent (ALGO: ppo or dqn) on a Gymnasium environment.\n\n"
+    "Train a deep RL agent (ALGO: ppo, dqn, sac or td3) on a Gymnasium environment.\n\n"
     "Starts from tuned defaults for the environment (rl-baselines3-zoo's settings for classic "
-    "control, Box2D and Atari, see policylab.deep.zoo), so `policylab train ppo CartPole-v1` "
-    "solves CartPole with no other flag.\n\n"
+    "control, Box2D, MuJoCo and Atari, see policylab.deep.zoo), so "
+    "`policylab train ppo CartPole-v1` solves CartPole with no other flag.\n\n"
     "The run folder (--out) gets run.json, progress.csv, TensorBoard events (tb/) and "
     "checkpoint.pt, which `policylab eval` and `policylab record` read and --resume continues.\n\n"
     "Config fields (a JSON or TOML table in --config, or --set FIELD=VALUE) are those of "
-    "policylab.deep.PPOConfig / DQNConfig; --dry-run lists them with their values and meaning."
+    "policylab.deep.PPOConfig / DQNConfig / SACConfig / TD3Config; --dry-run lists them with "
+    "their values and meaning."
 )
 
 
@@ -44,7 +45,7 @@ def _parse_set(items: list[str]) -> dict[str, Any]:
 
 
 def train_command(
-    algo: Annotated[str, typer.Argument(help="Algorithm: ppo or dqn.")],
+    algo: Annotated[str, typer.Argument(help="Algorithm: ppo, dqn, sac or td3.")],
     env_id: Annotated[
         str,
         typer.Argument(
@@ -86,11 +87,24 @@ def train_command(
     progress: Annotated[
         bool, typer.Option("--progress/--no-progress", help="Show the progress bar.")
     ] = True,
+    reward: Annotated[
+        str,
+        typer.Option(
+            "--reward",
+            help="Reward to learn from: env (the env's own) or walking (the walking reward of "
+            "Heess et al. 2017 on HalfCheetah, Hopper, Walker2d, Ant, Humanoid).",
+        ),
+    ] = "env",
+    v_max: Annotated[
+        float | None,
+        typer.Option("--v-max", help="Speed cap in m/s of the walking reward (default 3)."),
+    ] = None,
 ) -> None:
     import numpy as np
 
     from policylab.deep.common.config import config_help, load_config_file
     from policylab.deep.common.evaluation import evaluate
+    from policylab.deep.common.walking import evaluate_walking, resume_env, reward_env
     from policylab.deep.zoo import ALGORITHMS, default_config
 
     algo = algo.lower()
@@ -102,7 +116,7 @@ def train_command(
     run_dir = out or Path("runs") / f"{algo}-{env_id.replace('/', '_')}-s{seed}"
     t0 = time.perf_counter()
     if resume:
-        agent = cls.resume(run_dir)
+        agent = cls.resume(run_dir, env=resume_env(run_dir, env_id))
         total = steps or agent.target_steps
         console.print(f"resuming {run_dir} at step {agent.num_timesteps:,} of {total:,}")
     else:
@@ -129,7 +143,7 @@ def train_command(
                 f"{str(run_dir)!r} already holds a run; pass --resume to continue it "
                 "or --out for a new folder"
             )
-        agent = cls(env_id, **fields)
+        agent = cls(reward_env(env_id, reward, int(fields.get("n_envs", 1)), v_max), **fields)
     agent.learn(int(total), progress=progress, run_dir=run_dir)
     seconds = time.perf_counter() - t0
     table = Table(title=f"{algo} on {env_id}")
@@ -147,6 +161,9 @@ def train_command(
         table.add_row(
             f"evaluation, {eval_episodes} episodes (greedy)", f"{np.mean(r):.2f} ± {np.std(r):.2f}"
         )
+        w = evaluate_walking(agent, run_dir / "run.json", eval_episodes, seed + 10_000)
+        if w is not None:
+            table.add_row("same episodes, walking reward", f"{np.mean(w):.2f} ± {np.std(w):.2f}")
     table.add_row("run folder", str(run_dir))
     console.print(table)
 
@@ -168,14 +185,22 @@ def eval_command(
     import numpy as np
 
     from policylab.deep.common.evaluation import evaluate
-    from policylab.deep.io import load
+    from policylab.deep.common.walking import evaluate_walking
+    from policylab.deep.io import checkpoint_path, load
 
     agent = load(run_dir)
     r = evaluate(agent, episodes=episodes, seed=seed, deterministic=not stochastic)
+    run_json = checkpoint_path(run_dir).parent / "run.json"
+    w = evaluate_walking(agent, run_json, episodes, seed, deterministic=not stochastic)
     if as_json:
-        print_json(
-            {"mean": float(np.mean(r)), "std": float(np.std(r)), "returns": [float(x) for x in r]}
-        )
+        doc: dict[str, Any] = {
+            "mean": float(np.mean(r)), "std": float(np.std(r)), "returns": [float(x) for x in r]
+        }  # fmt: skip
+        if w is not None:  # the same episodes under the walking reward the run trained on
+            doc["walking"] = {
+                "mean": float(np.mean(w)), "std": float(np.std(w)), "returns": [float(x) for x in w]
+            }  # fmt: skip
+        print_json(doc)
         return
     table = Table(title=f"{agent.algo} on {agent.env_id}: {episodes} episodes")
     table.add_column("mean", justify="right")
@@ -184,6 +209,11 @@ def eval_command(
     table.add_column("max", justify="right")
     table.add_row(*(f"{f(r):.2f}" for f in (np.mean, np.std, np.min, np.max)))
     console.print(table)
+    if w is not None:
+        console.print(
+            f"the same episodes under the walking reward: mean {np.mean(w):.2f}, "
+            f"std {np.std(w):.2f}"
+        )
 
 
 def record_command(
@@ -204,9 +234,11 @@ def record_command(
 ) -> None:
     """Write a GIF of one greedy episode of a trained agent (the env's rgb_array frames)."""
     from policylab.deep.io import checkpoint_path, load
+    from policylab.deep.mujoco_gl import use_offscreen_gl
     from policylab.deep.record import record_gif
 
     agent = load(run_dir)
+    use_offscreen_gl(agent.env_id)  # MuJoCo walkers render headless (EGL or OSMesa)
     target = out or checkpoint_path(run_dir).parent / "episode.gif"
     ret, n = record_gif(agent, target, seed=seed, max_steps=max_steps, fps=fps, every=every)
     console.print(f"wrote {target}: {n} frames, episode return {ret:.2f}")

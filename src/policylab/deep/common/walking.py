@@ -13,8 +13,10 @@ track's centre line and effort penalised, and a small bonus for staying alive.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
@@ -26,9 +28,14 @@ from policylab.exceptions import InvalidArgumentError
 
 __all__ = [
     "DEFAULT_V_MAX",
+    "REWARDS",
     "WALKERS",
     "WalkingReward",
+    "evaluate_walking",
+    "resume_env",
     "reward_description",
+    "reward_env",
+    "run_reward",
     "walking_reward",
     "walking_vec_env",
 ]
@@ -187,3 +194,83 @@ def reward_description(envs: VectorEnv | None) -> dict[str, Any]:
                 return {"name": "walking", "v_max": env.v_max}
             env = env.env
     return {"name": "env"}
+
+
+REWARDS = ("env", "walking")
+"""The rewards ``policylab train --reward`` offers: the env's own, or the walking reward."""
+
+
+def reward_env(
+    env_id: str, reward: dict[str, Any] | str, n_envs: int = 1, v_max: float | None = None
+) -> str | VectorEnv:
+    """The env to train or evaluate on for a reward: the id itself, or walking copies of it.
+
+    Args:
+        env_id: A Gymnasium id.
+        reward: ``"env"``, ``"walking"``, or a :func:`reward_description` dict.
+        n_envs: Number of copies (walking reward).
+        v_max: The speed cap of the walking reward (default :data:`DEFAULT_V_MAX`).
+
+    Raises:
+        InvalidArgumentError: For an unknown reward, a v_max without the walking reward,
+            or an env the walking reward cannot read.
+    """
+    if isinstance(reward, dict):
+        name = reward.get("name", "env")
+        v_max = reward.get("v_max", v_max)
+    else:
+        name = reward
+    if name not in REWARDS:
+        raise InvalidArgumentError(f"reward must be one of {', '.join(REWARDS)}; got {name!r}")
+    if name == "env":
+        if v_max is not None:
+            raise InvalidArgumentError(
+                "--v-max applies to the walking reward: add --reward walking"
+            )
+        return env_id
+    return walking_vec_env(env_id, n_envs, DEFAULT_V_MAX if v_max is None else float(v_max))
+
+
+def run_reward(run_json: str | Path) -> dict[str, Any]:
+    """The reward a run folder's ``run.json`` records (``{"name": "env"}`` if none)."""
+    p = Path(run_json)
+    if not p.is_file():
+        return {"name": "env"}
+    try:
+        doc = json.loads(p.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        return {"name": "env"}
+    reward = doc.get("reward") if isinstance(doc, dict) else None
+    return reward if isinstance(reward, dict) else {"name": "env"}
+
+
+def resume_env(run_dir: str | Path, env_id: str | None) -> VectorEnv | None:
+    """The env to resume a run folder on (None: the agent re-makes it from its id).
+
+    A run that trained on the walking reward resumes on walking copies of its env, as
+    many as its ``n_envs``.
+    """
+    reward = run_reward(Path(run_dir) / "run.json")
+    if reward.get("name") != "walking" or env_id is None:
+        return None
+    doc = json.loads((Path(run_dir) / "run.json").read_text())
+    n_envs = int(doc.get("config", {}).get("n_envs", 1))
+    return walking_vec_env(env_id, n_envs, float(reward.get("v_max", DEFAULT_V_MAX)))
+
+
+def evaluate_walking(
+    agent: Any, run_json: str | Path, episodes: int, seed: int, deterministic: bool = True
+) -> NDArray[np.float64] | None:
+    """Returns of ``agent`` under the walking reward if its run trained on it, else None.
+
+    The episodes are those of :func:`~policylab.deep.common.evaluation.evaluate` with the
+    same seed (same number of envs, same resets), so with a deterministic policy each
+    return pairs with the env-reward return of the same episode.
+    """
+    from policylab.deep.common.evaluation import evaluate
+
+    reward = run_reward(run_json)
+    if reward.get("name") != "walking" or agent.env_id is None:
+        return None
+    env = reward_env(agent.env_id, reward, n_envs=min(int(episodes), 16))
+    return evaluate(agent, env, episodes=episodes, seed=seed, deterministic=deterministic)

@@ -25,6 +25,9 @@ class TD3Config(OffPolicyConfig):
     """Hyperparameters of :class:`TD3` (the same names in config files and the CLI)."""
 
     learning_rate: float = option(1e-3, "Adam step size of the actor and the critics.")
+    hidden: tuple[int, ...] = option(
+        (400, 300), "Hidden layer sizes of the actor and critics (those of Fujimoto et al.)."
+    )
     policy_delay: int = option(2, "Critic updates per actor (and target network) update.")
     target_policy_noise: float = option(
         0.2, "Std of the Gaussian noise on the target actor's actions (target smoothing)."

@@ -99,6 +99,7 @@ def test_record_without_offscreen_gl_says_what_to_install(
     from policylab.exceptions import InvalidArgumentError
 
     monkeypatch.delenv("MUJOCO_GL", raising=False)
+    monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
     monkeypatch.setattr(mujoco_gl, "_works", lambda backend: False)
     with pytest.raises(InvalidArgumentError, match="libosmesa6"):
         mujoco_gl.use_offscreen_gl("Walker2d-v5")

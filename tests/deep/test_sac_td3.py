@@ -102,12 +102,12 @@ def test_twin_q_network_is_two_mlps_and_detached_params_give_no_critic_grads() -
     obs, act = torch.randn(4, 3), torch.randn(4, 2, requires_grad=True)
     q = net(obs, act)
     assert q.shape == (2, 4)
-    x = torch.cat([obs, act], 1)
-    ws, bs = list(net.weights), list(net.biases)
+    ws, bs = list(net.weights), list(net.biases)  # the first layer: W_s and W_a
+    assert [tuple(w.shape) for w in ws] == [(2, 3, 8), (2, 2, 8), (2, 8, 5), (2, 5, 1)]
     for k in range(2):
-        h = torch.relu(x @ ws[0][k] + bs[0][k])
-        h = torch.relu(h @ ws[1][k] + bs[1][k])
-        torch.testing.assert_close(q[k], (h @ ws[2][k] + bs[2][k]).squeeze(-1))
+        h = torch.relu(obs @ ws[0][k] + act @ ws[1][k] + bs[0][k])
+        h = torch.relu(h @ ws[2][k] + bs[1][k])
+        torch.testing.assert_close(q[k], (h @ ws[3][k] + bs[2][k]).squeeze(-1))
     q_detached = net(obs, act, [p.detach() for p in net.parameters()])
     torch.testing.assert_close(q_detached, q)
     q_detached.sum().backward()

@@ -196,13 +196,16 @@ class TwinQNetwork(nn.Module):
 
     Each layer of the two MLPs is one (2, in, out) weight tensor, so both critics run as
     one batched matrix product per layer (``torch.baddbmm``): half the kernel launches
-    of two separate networks, with the same arithmetic. Weights are orthogonal (gain
-    sqrt(2) in hidden layers, 1 at the output), biases zero.
+    of two separate networks, with the same arithmetic. The first layer keeps separate
+    weights for the observation and the action, W_s s + W_a a + b (the same layer as
+    W [s; a] + b), so that an actor's loss, which needs dQ/da only, never multiplies
+    gradients through W_s. Weights are orthogonal (gain sqrt(2) in hidden layers, 1 at
+    the output), biases zero.
 
     Args:
         obs_dim: Observation features.
         action_dim: Action dimensions.
-        hidden: Hidden layer sizes of each critic.
+        hidden: Hidden layer sizes of each critic (at least one layer).
         act: Activation name (tanh, relu, elu).
         generator: Generator of the initial weights.
     """
@@ -216,7 +219,10 @@ class TwinQNetwork(nn.Module):
         generator: torch.Generator | None = None,
     ) -> None:
         super().__init__()
+        if not hidden:
+            raise InvalidArgumentError("the twin critics need at least one hidden layer")
         dims = [obs_dim + action_dim, *hidden, 1]
+        self.obs_dim = obs_dim
         self.weights = nn.ParameterList()
         self.biases = nn.ParameterList()
         for i, (d_in, d_out) in enumerate(itertools.pairwise(dims)):
@@ -224,7 +230,11 @@ class TwinQNetwork(nn.Module):
             gain = 1.0 if i == len(dims) - 2 else math.sqrt(2)
             for k in range(2):  # orthogonal init acts on (out, in) matrices
                 w[k] = nn.init.orthogonal_(torch.empty(d_out, d_in), gain, generator).T
-            self.weights.append(nn.Parameter(w))
+            if i == 0:
+                self.weights.append(nn.Parameter(w[:, :obs_dim].contiguous()))
+                self.weights.append(nn.Parameter(w[:, obs_dim:].contiguous()))
+            else:
+                self.weights.append(nn.Parameter(w))
             self.biases.append(nn.Parameter(torch.zeros(2, 1, d_out)))
         self.act = activation(act)()
 
@@ -241,11 +251,11 @@ class TwinQNetwork(nn.Module):
         critic weight gradients.
         """
         ps = list(self.parameters()) if params is None else list(params)
-        n = len(ps) // 2
-        x = torch.cat([obs.reshape(len(obs), -1), actions], dim=1)
-        h = x.unsqueeze(0).expand(2, -1, -1)
-        for i in range(n):
-            h = torch.baddbmm(ps[n + i], h, ps[i])
-            if i < n - 1:
-                h = self.act(h)
+        n = len(ps) // 2  # n + 1 weights (the first layer's two) and n biases
+        ws, bs = ps[: n + 1], ps[n + 1 :]
+        s = obs.reshape(len(obs), -1).unsqueeze(0).expand(2, -1, -1)
+        h = torch.baddbmm(bs[0], s, ws[0])
+        h = torch.baddbmm(h, actions.unsqueeze(0).expand(2, -1, -1), ws[1])
+        for i in range(1, n):
+            h = torch.baddbmm(bs[i], self.act(h), ws[i + 1])
         return h.squeeze(-1)

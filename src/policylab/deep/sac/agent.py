@@ -75,13 +75,16 @@ class SAC(OffPolicyAgent):
 
     Each gradient step on a minibatch (S, A, R, S', d) of the replay buffer:
 
-    1. alpha: one Adam step on J(alpha) (:func:`~policylab.deep.sac.losses.entropy_coef_loss`)
-       with a ~ pi(. | S), when ``ent_coef`` is learned;
-    2. critics: one step on sum_i E[(Q_i(S, A) - y)^2] / 2 with the soft target
+    1. critics: one Adam step on sum_i E[(Q_i(S, A) - y)^2] / 2 with the soft target
        y = R + d (min_i Q'_i(S', A') - alpha log pi(A' | S')), A' ~ pi(. | S');
-    3. actor: one step on E[alpha log pi(a | S) - min_i Q_i(S, a)] (the critics' weights
-       held constant, so their gradients are never computed);
+    2. actor: one step on E[alpha log pi(a | S) - min_i Q_i(S, a)], a ~ pi(. | S) (the
+       critics' weights held constant, so their gradients are never computed);
+    3. alpha, when ``ent_coef`` is learned: one step on J(alpha)
+       (:func:`~policylab.deep.sac.losses.entropy_coef_loss`) with the same a;
     4. every ``target_update_interval`` steps, Q' <- tau Q + (1 - tau) Q'.
+
+    Both losses use alpha from before this step, as in Stable-Baselines3, so the order
+    of the alpha step does not change the result.
 
     Actions are tanh outputs rescaled to the bounds of the env's ``Box`` action space.
 
@@ -107,13 +110,15 @@ class SAC(OffPolicyAgent):
         self._critic_params = list(self.critic.parameters())
         self._target_params = list(self.critic_target.parameters())
         lr = cfg.learning_rate
-        self.actor_optimizer = torch.optim.Adam(self._actor_params, lr=lr, fused=True)
-        self.critic_optimizer = torch.optim.Adam(self._critic_params, lr=lr, fused=True)
         alpha0, self.learn_alpha = _initial_alpha(cfg.ent_coef)
         self.log_alpha = torch.tensor(math.log(alpha0), requires_grad=self.learn_alpha)
-        self.alpha_optimizer = (
-            torch.optim.Adam([self.log_alpha], lr=lr) if self.learn_alpha else None
-        )
+        # log alpha steps with the actor, in one Adam (Adam treats each tensor on its own,
+        # so this is two separate Adam updates in one call)
+        groups: list[dict[str, Any]] = [{"params": self._actor_params}]
+        if self.learn_alpha:
+            groups.append({"params": [self.log_alpha]})
+        self.actor_optimizer = torch.optim.Adam(groups, lr=lr, fused=True)
+        self.critic_optimizer = torch.optim.Adam(self._critic_params, lr=lr, fused=True)
         te = cfg.target_entropy
         self.target_entropy = -float(self.action_dim) if te == "auto" else float(te)
 
@@ -136,17 +141,11 @@ class SAC(OffPolicyAgent):
         rewards, discounts = torch.as_tensor(batch.returns), torch.as_tensor(batch.discounts)
         stats: Tensors = {}
 
-        # 1. the temperature, from the current policy's log-probabilities
+        # the policy's actions and log-probabilities at S, and alpha before this step
         actions_pi, log_prob = self.actor.sample(obs, self.torch_gen)
         alpha = self.log_alpha.detach().exp()
-        if self.alpha_optimizer is not None:
-            alpha_loss = entropy_coef_loss(self.log_alpha, log_prob, self.target_entropy)
-            self.alpha_optimizer.zero_grad(set_to_none=True)
-            alpha_loss.backward()  # type: ignore[no-untyped-call]
-            self.alpha_optimizer.step()
-            stats["ent_coef_loss"] = alpha_loss.detach()
 
-        # 2. the critics, toward the soft clipped double-Q target
+        # 1. the critics, toward the soft clipped double-Q target
         with torch.no_grad():
             next_actions, next_log_prob = self.actor.sample(next_obs, self.torch_gen)
             next_q = self.critic_target(next_obs, next_actions)
@@ -158,11 +157,17 @@ class SAC(OffPolicyAgent):
         self._clip_grads(self._critic_params)
         self.critic_optimizer.step()
 
-        # 3. the actor, through the updated critics with their weights held constant
+        # 2. the actor, through the updated critics with their weights held constant, and
+        # 3. alpha (its loss reaches log alpha only: log pi is held constant in it)
         q_pi = self.critic(obs, actions_pi, [p.detach() for p in self._critic_params])
         actor_loss = sac_actor_loss(log_prob, q_pi, alpha)
+        loss = actor_loss
+        if self.learn_alpha:
+            alpha_loss = entropy_coef_loss(self.log_alpha, log_prob, self.target_entropy)
+            loss = actor_loss + alpha_loss
+            stats["ent_coef_loss"] = alpha_loss.detach()
         self.actor_optimizer.zero_grad(set_to_none=True)
-        actor_loss.backward()  # type: ignore[no-untyped-call]
+        loss.backward()  # type: ignore[no-untyped-call]
         self._clip_grads(self._actor_params)
         self.actor_optimizer.step()
 
@@ -189,8 +194,6 @@ class SAC(OffPolicyAgent):
         if training_state:
             state["actor_optimizer"] = self.actor_optimizer.state_dict()
             state["critic_optimizer"] = self.critic_optimizer.state_dict()
-            if self.alpha_optimizer is not None:
-                state["alpha_optimizer"] = self.alpha_optimizer.state_dict()
         return state
 
     def _load_network_state(self, tensors: dict[str, Any]) -> None:
@@ -202,5 +205,3 @@ class SAC(OffPolicyAgent):
         if "actor_optimizer" in tensors:
             self.actor_optimizer.load_state_dict(tensors["actor_optimizer"])
             self.critic_optimizer.load_state_dict(tensors["critic_optimizer"])
-        if "alpha_optimizer" in tensors and self.alpha_optimizer is not None:
-            self.alpha_optimizer.load_state_dict(tensors["alpha_optimizer"])

@@ -6,21 +6,10 @@ import json
 from pathlib import Path
 
 import pytest
-
-from policylab.cli.main import main
+from test_cli import _run  # the deep CLI tests' runner (this folder is on sys.path)
 
 SMALL = ["--set", "hidden=[16]", "--set", "learning_starts=50", "--set", "batch_size=16",
          "--set", "buffer_size=1000", "--no-progress"]  # fmt: skip
-
-
-def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    try:
-        main(argv)
-        code = 0
-    except SystemExit as e:
-        code = int(e.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_train_walking_reward_eval_both_resume_record(

@@ -236,7 +236,9 @@ class TwinQNetwork(nn.Module):
             else:
                 self.weights.append(nn.Parameter(w))
             self.biases.append(nn.Parameter(torch.zeros(2, 1, d_out)))
-        self.act = activation(act)()
+        act_cls = activation(act)
+        # in place where the activation allows it (its input is no saved tensor)
+        self.act = act_cls(inplace=True) if act_cls in (nn.ReLU, nn.ELU) else act_cls()
 
     def forward(
         self,

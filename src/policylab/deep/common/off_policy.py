@@ -12,6 +12,7 @@ the value; the run folder keeps its last good checkpoint.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 from abc import abstractmethod
@@ -27,7 +28,8 @@ from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import NStepWindow, ReplayBatch, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check, option
-from policylab.deep.common.networks import clip_grad_norm
+from policylab.deep.common.losses import twin_q_loss
+from policylab.deep.common.networks import TwinQNetwork, clip_grad_norm
 from policylab.exceptions import InvalidArgumentError, NonFiniteError
 
 __all__ = ["OffPolicyAgent", "OffPolicyConfig", "Tensors", "check_bounded_box"]
@@ -88,7 +90,8 @@ def check_bounded_box(algo: str, space: gym.Space[Any]) -> gym.spaces.Box:
 class OffPolicyAgent(Agent):
     """Base of SAC and TD3: a replay buffer, [-1, 1] actions, and the collect/update loop.
 
-    A subclass builds its networks in :meth:`_build_networks`, picks exploration actions
+    A subclass builds its actor in :meth:`_build_networks` (the critics with
+    :meth:`_build_critics`), picks exploration actions
     in :meth:`_explore`, greedy ones in :meth:`_policy`, and writes one update in
     :meth:`_train_step`.
     """
@@ -140,6 +143,47 @@ class OffPolicyAgent(Agent):
     @abstractmethod
     def _load_network_state(self, tensors: dict[str, Any]) -> None:
         """Restore what :meth:`_network_state` gave."""
+
+    def _build_critics(self) -> None:
+        """The twin critics, their target copy and their Adam optimizer."""
+        cfg = self.config
+        self.critic = TwinQNetwork(
+            self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, self.torch_gen
+        )
+        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        self._critic_params = list(self.critic.parameters())
+        self.critic_optimizer = torch.optim.Adam(
+            self._critic_params, lr=cfg.learning_rate, fused=True
+        )
+
+    @staticmethod
+    def _batch_tensors(batch: ReplayBatch) -> tuple[torch.Tensor, ...]:
+        """(S, A, R, S', d) of a minibatch as tensors (sharing the sampled arrays)."""
+        return tuple(
+            torch.as_tensor(x)
+            for x in (batch.obs, batch.actions, batch.returns, batch.next_obs, batch.discounts)
+        )
+
+    def _critic_step(
+        self, obs: torch.Tensor, actions: torch.Tensor, targets: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """One Adam step of the twin critics on their loss toward ``targets``.
+
+        Returns:
+            The loss and (2, B) Q_1(S, A), Q_2(S, A), both detached.
+        """
+        q = self.critic(obs, actions)
+        loss = twin_q_loss(q, targets)
+        self.critic_optimizer.zero_grad(set_to_none=True)
+        loss.backward()  # type: ignore[no-untyped-call]
+        self._clip_grads(self._critic_params)
+        self.critic_optimizer.step()
+        return loss.detach(), q.detach()
+
+    def _critic_constant(self, obs: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        """(2, B) Q_i(S, a) through the critics' weights held constant (for an actor's loss)."""
+        out: torch.Tensor = self.critic(obs, actions, [p.detach() for p in self._critic_params])
+        return out
 
     # ---------------------------------------------------------------- actions
     def to_env_actions(self, actions: NDArray[Any]) -> NDArray[Any]:

@@ -244,16 +244,19 @@ def run_reward(run_json: str | Path) -> dict[str, Any]:
     return reward if isinstance(reward, dict) else {"name": "env"}
 
 
-def resume_env(run_dir: str | Path, env_id: str | None) -> VectorEnv | None:
+def resume_env(run_dir: str | Path, env_id: str | None = None) -> VectorEnv | None:
     """The env to resume a run folder on (None: the agent re-makes it from its id).
 
     A run that trained on the walking reward resumes on walking copies of its env, as
     many as its ``n_envs``.
     """
     reward = run_reward(Path(run_dir) / "run.json")
-    if reward.get("name") != "walking" or env_id is None:
+    if reward.get("name") != "walking":
         return None
     doc = json.loads((Path(run_dir) / "run.json").read_text())
+    env_id = doc.get("env_id") or env_id
+    if env_id is None:
+        return None
     n_envs = int(doc.get("config", {}).get("n_envs", 1))
     return walking_vec_env(env_id, n_envs, float(reward.get("v_max", DEFAULT_V_MAX)))
 

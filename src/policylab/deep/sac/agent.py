@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 from typing import Any
@@ -11,8 +10,7 @@ import torch
 
 from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
-from policylab.deep.common.losses import clipped_double_q_targets, polyak_update, twin_q_loss
-from policylab.deep.common.networks import TwinQNetwork
+from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
 from policylab.deep.common.off_policy import OffPolicyAgent, OffPolicyConfig, Tensors
 from policylab.deep.sac.losses import entropy_coef_loss, sac_actor_loss
 from policylab.deep.sac.networks import SquashedGaussianActor
@@ -104,10 +102,8 @@ class SAC(OffPolicyAgent):
         self.actor = SquashedGaussianActor(
             self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, g
         )
-        self.critic = TwinQNetwork(self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, g)
-        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        self._build_critics()
         self._actor_params = list(self.actor.parameters())
-        self._critic_params = list(self.critic.parameters())
         self._target_params = list(self.critic_target.parameters())
         lr = cfg.learning_rate
         alpha0, self.learn_alpha = _initial_alpha(cfg.ent_coef)
@@ -118,7 +114,6 @@ class SAC(OffPolicyAgent):
         if self.learn_alpha:
             groups.append({"params": [self.log_alpha]})
         self.actor_optimizer = torch.optim.Adam(groups, lr=lr, fused=True)
-        self.critic_optimizer = torch.optim.Adam(self._critic_params, lr=lr, fused=True)
         te = cfg.target_entropy
         self.target_entropy = -float(self.action_dim) if te == "auto" else float(te)
 
@@ -136,9 +131,7 @@ class SAC(OffPolicyAgent):
 
     def _train_step(self, batch: ReplayBatch) -> Tensors:
         cfg = self.config
-        obs, next_obs = torch.as_tensor(batch.obs), torch.as_tensor(batch.next_obs)
-        actions = torch.as_tensor(batch.actions)
-        rewards, discounts = torch.as_tensor(batch.returns), torch.as_tensor(batch.discounts)
+        obs, actions, rewards, next_obs, discounts = self._batch_tensors(batch)
         stats: Tensors = {}
 
         # the policy's actions and log-probabilities at S, and alpha before this step
@@ -150,17 +143,11 @@ class SAC(OffPolicyAgent):
             next_actions, next_log_prob = self.actor.sample(next_obs, self.torch_gen)
             next_q = self.critic_target(next_obs, next_actions)
             y = clipped_double_q_targets(rewards, discounts, next_q, next_log_prob, alpha)
-        q = self.critic(obs, actions)
-        critic_loss = twin_q_loss(q, y)
-        self.critic_optimizer.zero_grad(set_to_none=True)
-        critic_loss.backward()  # type: ignore[no-untyped-call]
-        self._clip_grads(self._critic_params)
-        self.critic_optimizer.step()
+        critic_loss, q = self._critic_step(obs, actions, y)
 
         # 2. the actor, through the updated critics with their weights held constant, and
         # 3. alpha (its loss reaches log alpha only: log pi is held constant in it)
-        q_pi = self.critic(obs, actions_pi, [p.detach() for p in self._critic_params])
-        actor_loss = sac_actor_loss(log_prob, q_pi, alpha)
+        actor_loss = sac_actor_loss(log_prob, self._critic_constant(obs, actions_pi), alpha)
         loss = actor_loss
         if self.learn_alpha:
             alpha_loss = entropy_coef_loss(self.log_alpha, log_prob, self.target_entropy)
@@ -176,9 +163,9 @@ class SAC(OffPolicyAgent):
         if self.n_updates % cfg.target_update_interval == 0:
             polyak_update(self._target_params, self._critic_params, cfg.tau)
         stats.update(
-            critic_loss=critic_loss.detach(),
+            critic_loss=critic_loss,
             actor_loss=actor_loss.detach(),
-            q_mean=q.detach().mean(),
+            q_mean=q.mean(),
             ent_coef=alpha,
             entropy=-log_prob.detach().mean(),
         )

@@ -10,8 +10,7 @@ import torch
 
 from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
-from policylab.deep.common.losses import clipped_double_q_targets, polyak_update, twin_q_loss
-from policylab.deep.common.networks import TwinQNetwork
+from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
 from policylab.deep.common.off_policy import OffPolicyAgent, OffPolicyConfig, Tensors
 from policylab.deep.td3.losses import smoothed_target_actions, td3_actor_loss
 from policylab.deep.td3.networks import DeterministicActor
@@ -78,15 +77,13 @@ class TD3(OffPolicyAgent):
             self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, g
         )
         self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)
-        self.critic = TwinQNetwork(self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, g)
-        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        self._build_critics()
         self._actor_params = list(self.actor.parameters())
-        self._critic_params = list(self.critic.parameters())
         self._online = self._actor_params + self._critic_params
         self._targets = list(self.actor_target.parameters()) + list(self.critic_target.parameters())
-        lr = cfg.learning_rate
-        self.actor_optimizer = torch.optim.Adam(self._actor_params, lr=lr, fused=True)
-        self.critic_optimizer = torch.optim.Adam(self._critic_params, lr=lr, fused=True)
+        self.actor_optimizer = torch.optim.Adam(
+            self._actor_params, lr=cfg.learning_rate, fused=True
+        )
 
     def _policy(self, obs: torch.Tensor) -> torch.Tensor:
         out: torch.Tensor = self.actor(obs)
@@ -102,9 +99,7 @@ class TD3(OffPolicyAgent):
 
     def _train_step(self, batch: ReplayBatch) -> Tensors:
         cfg = self.config
-        obs, next_obs = torch.as_tensor(batch.obs), torch.as_tensor(batch.next_obs)
-        actions = torch.as_tensor(batch.actions)
-        rewards, discounts = torch.as_tensor(batch.returns), torch.as_tensor(batch.discounts)
+        obs, actions, rewards, next_obs, discounts = self._batch_tensors(batch)
 
         # 1. the critics, toward the clipped double-Q target of the smoothed target action
         with torch.no_grad():
@@ -115,20 +110,13 @@ class TD3(OffPolicyAgent):
             y = clipped_double_q_targets(
                 rewards, discounts, self.critic_target(next_obs, next_actions)
             )
-        q = self.critic(obs, actions)
-        critic_loss = twin_q_loss(q, y)
-        self.critic_optimizer.zero_grad(set_to_none=True)
-        critic_loss.backward()  # type: ignore[no-untyped-call]
-        self._clip_grads(self._critic_params)
-        self.critic_optimizer.step()
+        critic_loss, q = self._critic_step(obs, actions, y)
         self.n_updates += 1
-        stats: Tensors = {"critic_loss": critic_loss.detach(), "q_mean": q.detach().mean()}
+        stats: Tensors = {"critic_loss": critic_loss, "q_mean": q.mean()}
 
         # 2. delayed: the actor through Q_1 with the critic's weights constant, then targets
         if self.n_updates % cfg.policy_delay == 0:
-            detached = [p.detach() for p in self._critic_params]
-            q1 = self.critic(obs, self.actor(obs), detached)[0]
-            actor_loss = td3_actor_loss(q1)
+            actor_loss = td3_actor_loss(self._critic_constant(obs, self.actor(obs))[0])
             self.actor_optimizer.zero_grad(set_to_none=True)
             actor_loss.backward()  # type: ignore[no-untyped-call]
             self._clip_grads(self._actor_params)

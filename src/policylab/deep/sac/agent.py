@@ -127,7 +127,7 @@ class SAC(OffPolicyAgent):
         return out
 
     def _explore(self, obs: torch.Tensor) -> torch.Tensor:
-        return self.actor.sample(obs, self.torch_gen)[0]
+        return self.actor.sample(obs, self.torch_gen, log_prob=False)[0]
 
     def _train_step(self, batch: ReplayBatch) -> Tensors:
         cfg = self.config
@@ -136,11 +136,13 @@ class SAC(OffPolicyAgent):
 
         # the policy's actions and log-probabilities at S, and alpha before this step
         actions_pi, log_prob = self.actor.sample(obs, self.torch_gen)
+        assert log_prob is not None
         alpha = self.log_alpha.detach().exp()
 
         # 1. the critics, toward the soft clipped double-Q target
         with torch.no_grad():
             next_actions, next_log_prob = self.actor.sample(next_obs, self.torch_gen)
+            assert next_log_prob is not None
             next_q = self.critic_target(next_obs, next_actions)
             y = clipped_double_q_targets(rewards, discounts, next_q, next_log_prob, alpha)
         critic_loss, q = self._critic_step(obs, actions, y)

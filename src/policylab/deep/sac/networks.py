@@ -48,12 +48,15 @@ class SquashedGaussianActor(nn.Module):
         return mean, log_std.clamp(LOG_STD_MIN, LOG_STD_MAX)
 
     def sample(
-        self, obs: torch.Tensor, generator: torch.Generator | None
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Reparameterised actions a = tanh(mu + sigma eps), eps ~ N(0, I), and log pi(a | s)."""
+        self, obs: torch.Tensor, generator: torch.Generator | None, log_prob: bool = True
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """Reparameterised actions a = tanh(mu + sigma eps), eps ~ N(0, I), and log pi(a | s).
+
+        The log-probability is None with ``log_prob=False`` (acting does not need it).
+        """
         mean, log_std = self.distribution(obs)
         u = mean + log_std.exp() * torch.randn(mean.shape, generator=generator)
-        return torch.tanh(u), squashed_gaussian_log_prob(u, mean, log_std)
+        return torch.tanh(u), squashed_gaussian_log_prob(u, mean, log_std) if log_prob else None
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         """The deterministic action tanh(mu(s)), (B, m)."""

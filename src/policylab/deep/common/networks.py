@@ -19,6 +19,7 @@ from policylab.exceptions import InvalidArgumentError
 
 __all__ = [
     "MLP",
+    "ActorMLP",
     "NatureCNN",
     "TwinQNetwork",
     "build_torso",
@@ -261,3 +262,37 @@ class TwinQNetwork(nn.Module):
         for i in range(1, n):
             h = torch.baddbmm(bs[i], self.act(h), ws[i + 1])
         return h.squeeze(-1)
+
+
+class ActorMLP(nn.Module):
+    """The MLP of a continuous-action actor: ``heads`` outputs per action dimension.
+
+    The output layer starts small (orthogonal gain 0.01), so the first actions sit near
+    the middle of the action space.
+
+    Args:
+        obs_dim: Observation features.
+        action_dim: m, the action dimensions.
+        hidden: Hidden layer sizes.
+        act: Activation name (tanh, relu, elu).
+        generator: Generator of the initial weights.
+        heads: Outputs per action dimension (1: an action; 2: a mean and a log std).
+    """
+
+    def __init__(
+        self,
+        obs_dim: int,
+        action_dim: int,
+        hidden: Sequence[int],
+        act: str = "relu",
+        generator: torch.Generator | None = None,
+        heads: int = 1,
+    ) -> None:
+        super().__init__()
+        self.action_dim = action_dim
+        self.net = MLP(obs_dim, hidden, heads * action_dim, act, out_gain=0.01, generator=generator)
+
+    def features(self, obs: torch.Tensor) -> torch.Tensor:
+        """The MLP's (B, heads * m) outputs for a batch of observations."""
+        out: torch.Tensor = self.net(obs.reshape(len(obs), -1))
+        return out

@@ -5,9 +5,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import torch
-from torch import nn
 
-from policylab.deep.common.networks import MLP
+from policylab.deep.common.networks import ActorMLP
 from policylab.deep.sac.losses import squashed_gaussian_log_prob
 
 __all__ = ["LOG_STD_MAX", "LOG_STD_MIN", "SquashedGaussianActor"]
@@ -16,17 +15,11 @@ LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0
 """The range log std is clipped to (as in Stable-Baselines3)."""
 
 
-class SquashedGaussianActor(nn.Module):
+class SquashedGaussianActor(ActorMLP):
     """pi(. | s): a = tanh(u), u ~ N(mu(s), diag(sigma(s)^2)), a in (-1, 1)^m.
 
-    One MLP outputs mu and log sigma together (one matrix product for both heads).
-
-    Args:
-        obs_dim: Observation features.
-        action_dim: m, the action dimensions.
-        hidden: Hidden layer sizes.
-        act: Activation name (tanh, relu, elu).
-        generator: Generator of the initial weights.
+    One MLP outputs mu and log sigma together (one matrix product for both heads);
+    constructed as :class:`ActorMLP` (whose ``heads`` is fixed to 2 here).
     """
 
     def __init__(
@@ -37,14 +30,11 @@ class SquashedGaussianActor(nn.Module):
         act: str = "relu",
         generator: torch.Generator | None = None,
     ) -> None:
-        super().__init__()
-        self.action_dim = action_dim
-        self.net = MLP(obs_dim, hidden, 2 * action_dim, act, out_gain=0.01, generator=generator)
+        super().__init__(obs_dim, action_dim, hidden, act, generator, heads=2)
 
     def distribution(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(mu, log sigma) for a batch, each (B, m), log sigma clipped to [-20, 2]."""
-        out = self.net(obs.reshape(len(obs), -1))
-        mean, log_std = out.split(self.action_dim, dim=-1)
+        mean, log_std = self.features(obs).chunk(2, dim=-1)
         return mean, log_std.clamp(LOG_STD_MIN, LOG_STD_MAX)
 
     def sample(

@@ -49,7 +49,7 @@ def train_command(
     env_id: Annotated[
         str,
         typer.Argument(
-            help="Gymnasium id: CartPole-v1, Pendulum-v1, LunarLander-v3, ALE/Pong-v5, ..."
+            help="Gymnasium id: CartPole-v1, Pendulum-v1, Walker2d-v5, ALE/Pong-v5, ..."
         ),
     ],
     steps: Annotated[

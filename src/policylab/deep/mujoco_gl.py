@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import tempfile
 
 from policylab.exceptions import InvalidArgumentError
 
@@ -37,10 +38,12 @@ def is_mujoco_env(env_id: str | None) -> bool:
 
 def _works(backend: str) -> bool:
     env = {**os.environ, "MUJOCO_GL": backend, "PYOPENGL_PLATFORM": backend}
-    try:
-        done = subprocess.run(
-            [sys.executable, "-c", _PROBE], env=env, capture_output=True, timeout=60
-        )
+    try:  # in a scratch folder: a failing MuJoCo writes MUJOCO_LOG.TXT where it runs
+        with tempfile.TemporaryDirectory() as scratch:
+            done = subprocess.run(
+                [sys.executable, "-c", _PROBE], env=env, capture_output=True, timeout=60,
+                cwd=scratch,
+            )  # fmt: skip
     except (OSError, subprocess.TimeoutExpired):
         return False
     return done.returncode == 0

@@ -110,6 +110,7 @@ def test_twin_q_network_is_two_mlps_and_detached_params_give_no_critic_grads() -
         torch.testing.assert_close(q[k], (h @ ws[3][k] + bs[2][k]).squeeze(-1))
     q_detached = net(obs, act, [p.detach() for p in net.parameters()])
     torch.testing.assert_close(q_detached, q)
+    torch.testing.assert_close(net(obs, act, [p.detach()[:1] for p in net.parameters()]), q[:1])
     q_detached.sum().backward()
     assert act.grad is not None and all(p.grad is None for p in net.parameters())
 

@@ -251,14 +251,16 @@ class TwinQNetwork(nn.Module):
 
         ``params`` (weights then biases, as :meth:`parameters` orders them) evaluates the
         critics with other tensors, e.g. detached ones, so that an actor's loss gets no
-        critic weight gradients.
+        critic weight gradients; their first-axis slices ``[:1]`` evaluate Q_1 alone
+        (shape (1, B)).
         """
         ps = list(self.parameters()) if params is None else list(params)
         n = len(ps) // 2  # n + 1 weights (the first layer's two) and n biases
         ws, bs = ps[: n + 1], ps[n + 1 :]
-        s = obs.reshape(len(obs), -1).unsqueeze(0).expand(2, -1, -1)
+        k = len(ws[0])  # 2, or 1 with the first critic's tensors alone
+        s = obs.reshape(len(obs), -1).unsqueeze(0).expand(k, -1, -1)
         h = torch.baddbmm(bs[0], s, ws[0])
-        h = torch.baddbmm(h, actions.unsqueeze(0).expand(2, -1, -1), ws[1])
+        h = torch.baddbmm(h, actions.unsqueeze(0).expand(k, -1, -1), ws[1])
         for i in range(1, n):
             h = torch.baddbmm(bs[i], self.act(h), ws[i + 1])
         return h.squeeze(-1)

@@ -180,9 +180,17 @@ class OffPolicyAgent(Agent):
         self.critic_optimizer.step()
         return loss.detach(), q.detach()
 
-    def _critic_constant(self, obs: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-        """(2, B) Q_i(S, a) through the critics' weights held constant (for an actor's loss)."""
-        out: torch.Tensor = self.critic(obs, actions, [p.detach() for p in self._critic_params])
+    def _critic_constant(
+        self, obs: torch.Tensor, actions: torch.Tensor, first_only: bool = False
+    ) -> torch.Tensor:
+        """Q_i(S, a) through the critics' weights held constant (for an actor's loss).
+
+        Returns:
+            (2, B) Q_1 and Q_2, or (1, B) Q_1 alone with ``first_only`` (half the work).
+        """
+        n = 1 if first_only else 2
+        params = [p.detach()[:n] for p in self._critic_params]
+        out: torch.Tensor = self.critic(obs, actions, params)
         return out
 
     # ---------------------------------------------------------------- actions

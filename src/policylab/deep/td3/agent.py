@@ -116,7 +116,8 @@ class TD3(OffPolicyAgent):
 
         # 2. delayed: the actor through Q_1 with the critic's weights constant, then targets
         if self.n_updates % cfg.policy_delay == 0:
-            actor_loss = td3_actor_loss(self._critic_constant(obs, self.actor(obs))[0])
+            q1 = self._critic_constant(obs, self.actor(obs), first_only=True)[0]
+            actor_loss = td3_actor_loss(q1)
             self.actor_optimizer.zero_grad(set_to_none=True)
             actor_loss.backward()  # type: ignore[no-untyped-call]
             self._clip_grads(self._actor_params)

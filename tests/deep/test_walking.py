@@ -94,3 +94,8 @@ def test_agent_on_the_walking_reward_records_it_in_run_json(tmp_path: Path) -> N
     agent.learn(120, run_dir=tmp_path / "run")
     doc = json.loads((tmp_path / "run" / "run.json").read_text())
     assert doc["reward"] == {"name": "walking", "v_max": 1.5}
+    resumed = pl.deep.SAC.resume(tmp_path / "run")  # continues on the walking reward
+    assert pl.deep.common.walking.reward_description(resumed.envs)["v_max"] == 1.5
+    resumed.learn(150, run_dir=tmp_path / "run")
+    doc = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert doc["reward"] == {"name": "walking", "v_max": 1.5}

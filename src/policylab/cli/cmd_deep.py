@@ -104,7 +104,7 @@ def train_command(
 
     from policylab.deep.common.config import config_help, load_config_file
     from policylab.deep.common.evaluation import evaluate
-    from policylab.deep.common.walking import evaluate_walking, resume_env, reward_env
+    from policylab.deep.common.walking import evaluate_walking, reward_env
     from policylab.deep.zoo import ALGORITHMS, default_config
 
     algo = algo.lower()
@@ -116,7 +116,7 @@ def train_command(
     run_dir = out or Path("runs") / f"{algo}-{env_id.replace('/', '_')}-s{seed}"
     t0 = time.perf_counter()
     if resume:
-        agent = cls.resume(run_dir, env=resume_env(run_dir, env_id))
+        agent = cls.resume(run_dir)
         total = steps or agent.target_steps
         console.print(f"resuming {run_dir} at step {agent.num_timesteps:,} of {total:,}")
     else:

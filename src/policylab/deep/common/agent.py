@@ -40,7 +40,7 @@ from policylab.deep.common.envs import (
 )
 from policylab.deep.common.logging import RunLogger, TrainingProgress
 from policylab.deep.common.normalize import ObservationNormalizer
-from policylab.deep.common.walking import reward_description
+from policylab.deep.common.walking import resume_env, reward_description
 from policylab.exceptions import CheckpointError, InvalidArgumentError
 
 __all__ = ["Agent", "BaseConfig", "Callback"]
@@ -321,6 +321,8 @@ class Agent(ABC):
         ``agent.learn(agent.target_steps, run_dir=run_dir)`` finishes the run; episodes
         in progress at the checkpoint are restarted.
         """
+        if env is None:  # a run on the walking reward continues on it
+            env = resume_env(run_dir)
         return cls.load(Path(run_dir) / CHECKPOINT, env=env)
 
     # ------------------------------------------------------------- acting

@@ -174,6 +174,8 @@ def test_resume_continues_step_count_and_replay_buffer(tmp_path: Path, algo: str
     for name in ("obs", "actions", "returns", "next_obs", "discounts"):
         np.testing.assert_array_equal(getattr(resumed.replay, name), getattr(agent.replay, name))
     assert resumed.replay.pos == agent.replay.pos
+    header = (run / "progress.csv").read_text().splitlines()[0].split(",")
+    assert set(agent.metric_names) <= set(header)  # logged from the first row on
     obs = np.random.default_rng(0).normal(size=(8, 3)).astype(np.float32)
     np.testing.assert_array_equal(resumed.predict(obs), agent.predict(obs))
     resumed.learn(700, run_dir=run)

@@ -120,6 +120,11 @@ class OffPolicyAgent(Agent):
         self.window = NStepWindow(cfg.n_envs, 1, cfg.gamma)
         self._build_networks()
 
+    @property
+    @abstractmethod
+    def metric_names(self) -> tuple[str, ...]:
+        """The names of the statistics :meth:`_train_step` reports."""
+
     @abstractmethod
     def _build_networks(self) -> None:
         """Create the actor, critics, their targets and optimizers."""
@@ -230,20 +235,23 @@ class OffPolicyAgent(Agent):
             if out is not None:
                 self.replay.add(*out)
             obs = next_obs
+        # every iteration reports the same metrics (NaN before the first update, or for a
+        # loss this iteration did not compute), so progress.csv has all of them as columns
+        metrics = dict.fromkeys(self.metric_names, math.nan)
         if self.num_timesteps <= cfg.learning_starts or len(self.replay) < cfg.batch_size:
-            return {}
+            return metrics
         stats = [
             self._train_step(self.replay.sample(cfg.batch_size)) for _ in range(cfg.gradient_steps)
         ]
-        if not stats:
-            return {}
-        keys = list(stats[-1])
+        keys = list(dict.fromkeys(k for s in stats for k in s))
+        if not keys:
+            return metrics
         # per-key means in one pass (a key missing from a step, such as TD3's delayed
         # actor loss, is averaged over the steps that have it)
-        means = {k: torch.stack([s[k] for s in stats if k in s]).mean() for k in keys}
-        values = torch.stack(list(means.values())).tolist()
-        metrics = dict(zip(keys, values, strict=True))
-        bad = [k for k, v in metrics.items() if not math.isfinite(v)]
+        means = [torch.stack([s[k] for s in stats if k in s]).mean() for k in keys]
+        computed = dict(zip(keys, torch.stack(means).tolist(), strict=True))
+        metrics.update(computed)
+        bad = [k for k, v in computed.items() if not math.isfinite(v)]
         if bad:
             raise NonFiniteError(
                 f"{self.algo.upper()} {' and '.join(bad)} became NaN or infinite in the update "

@@ -118,6 +118,12 @@ class SAC(OffPolicyAgent):
         self.target_entropy = -float(self.action_dim) if te == "auto" else float(te)
 
     @property
+    def metric_names(self) -> tuple[str, ...]:
+        """The statistics of each update (``ent_coef_loss`` when alpha is learned)."""
+        names = ("critic_loss", "actor_loss", "q_mean", "ent_coef", "entropy")
+        return (*names, "ent_coef_loss") if self.learn_alpha else names
+
+    @property
     def alpha(self) -> float:
         """The entropy temperature now."""
         return float(self.log_alpha.detach().exp())

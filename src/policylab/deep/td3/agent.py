@@ -85,6 +85,11 @@ class TD3(OffPolicyAgent):
             self._actor_params, lr=cfg.learning_rate, fused=True
         )
 
+    @property
+    def metric_names(self) -> tuple[str, ...]:
+        """The statistics of each update (``actor_loss`` every ``policy_delay`` updates)."""
+        return ("critic_loss", "q_mean", "actor_loss")
+
     def _policy(self, obs: torch.Tensor) -> torch.Tensor:
         out: torch.Tensor = self.actor(obs)
         return out

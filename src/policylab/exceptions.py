@@ -44,6 +44,10 @@ class CheckpointError(PolicylabError, ValueError):
     """A checkpoint or saved file is missing, corrupt, or unsafe to load."""
 
 
+class NonFiniteError(PolicylabError, ValueError):
+    """A value that must be finite (an observation, a reward, a loss) is NaN or infinite."""
+
+
 class NotConvergedWarning(UserWarning):
     """An iterative method stopped at its iteration limit before converging."""
 

@@ -36,11 +36,11 @@ RESUME_SETTABLE = ("checkpoint_every", "log_interval", "torch_threads")
 saved and logged, or how fast it computes, never what it learns."""
 
 _TRAIN_HELP = (
-    "Train a deep RL agent (ALGO: ppo or dqn) on a Gymnasium environment.\n\n"
+    "Train a deep RL agent (ALGO: ppo, dqn, sac or td3) on a Gymnasium environment.\n\n"
     "Starts from tuned defaults for the environment (rl-baselines3-zoo's settings for classic "
-    "control, Box2D and Atari, see policylab.deep.zoo), so `policylab train ppo CartPole-v1` "
-    "solves CartPole with no other flag; an environment without tuned settings gets the "
-    "generic defaults, with a note.\n\n"
+    "control, Box2D, MuJoCo and Atari, see policylab.deep.zoo), so "
+    "`policylab train ppo CartPole-v1` solves CartPole with no other flag; an environment "
+    "without tuned settings gets the generic defaults, with a note.\n\n"
     "The run folder (--out) gets run.json, progress.csv, TensorBoard events (tb/) and "
     "checkpoint.pt, which `policylab eval` and `policylab record` read and --resume continues. "
     "It belongs to one command at a time (a second one is refused). A checkpoint is saved "
@@ -55,7 +55,8 @@ _TRAIN_HELP = (
     "rate then continues from the value it had reached down to 0 at the new end (a run "
     "annealed to 0 is not extended).\n\n"
     "Config fields (a JSON or TOML table in --config, or --set FIELD=VALUE) are those of "
-    "policylab.deep.PPOConfig / DQNConfig; --dry-run lists them with their values and meaning.\n\n"
+    "policylab.deep.PPOConfig / DQNConfig / SACConfig / TD3Config; --dry-run lists them with "
+    "their values and meaning.\n\n"
     "Board games: `train selfplay-td tic-tac-toe --out DIR` (Sutton & Barto's self-play TD "
     "learner) and `train alphazero tic-tac-toe|connect-four --out DIR` (--set FIELD=VALUE "
     "over policylab.games.alphazero.AlphaZeroConfig)."
@@ -77,12 +78,15 @@ def _parse_set(items: list[str]) -> dict[str, Any]:
 
 def train_command(
     algo: Annotated[
-        str, typer.Argument(help="Algorithm: ppo or dqn; board games: selfplay-td, alphazero.")
+        str,
+        typer.Argument(
+            help="Algorithm: ppo, dqn, sac or td3; board games: selfplay-td, alphazero."
+        ),
     ],
     env_id: Annotated[
         str,
         typer.Argument(
-            help="Gymnasium id: CartPole-v1, Pendulum-v1, LunarLander-v3, ALE/Pong-v5, ..."
+            help="Gymnasium id: CartPole-v1, Pendulum-v1, Walker2d-v5, ALE/Pong-v5, ..."
         ),
     ],
     steps: Annotated[
@@ -135,11 +139,23 @@ def train_command(
             '"seconds", "recent_return", "eval", "resumed_from"}.',
         ),
     ] = False,
+    reward: Annotated[
+        str,
+        typer.Option(
+            "--reward",
+            help="Reward to learn from: env (the env's own) or walking (the walking reward of "
+            "Heess et al. 2017 on HalfCheetah, Hopper, Walker2d, Ant, Humanoid).",
+        ),
+    ] = "env",
+    v_max: Annotated[
+        float | None,
+        typer.Option("--v-max", help="Speed cap in m/s of the walking reward (default 3)."),
+    ] = None,
 ) -> None:
     try:
         _train(
             algo, env_id, steps, seed, config, out, set_ or [], resume, eval_episodes,
-            dry_run, progress, as_json,
+            dry_run, progress, as_json, reward, v_max,
         )  # fmt: skip
     except TrainingInterrupted as e:
         typer.echo(f"interrupted at step {e.step:,}; continue with --resume", err=True)
@@ -165,6 +181,8 @@ def _train(
     dry_run: bool,
     progress: bool,
     as_json: bool,
+    reward: str = "env",
+    v_max: float | None = None,
 ) -> None:
     from policylab.cli.cmd_games import GAME_LEARNERS, train_game
 
@@ -184,9 +202,10 @@ def _train(
     from policylab.deep.common.config import config_from_dict, load_config_file
     from policylab.deep.common.envs import check_env_id
     from policylab.deep.common.evaluation import evaluate
+    from policylab.deep.common.walking import evaluate_walking, reward_env, run_reward
     from policylab.deep.io import resume as resume_run
     from policylab.deep.zoo import ALGORITHMS, default_config, has_tuned_settings
-    from policylab.runs import RunFolder
+    from policylab.runs import RUN_JSON, RunFolder
 
     algo = normalize_name(algo)
     if algo not in ALGORITHMS:
@@ -216,6 +235,15 @@ def _train(
         run = RunFolder(run_dir, resume=True, markers=RUN_MARKERS, command=command)
         with run:
             _check_same_run(run, algo, env_id, run.info or {})
+            if reward != "env" or v_max is not None:  # allowed only if it repeats the run's
+                kept = run_reward(run.file(RUN_JSON))
+                if kept.get("name") != reward or v_max not in (None, kept.get("v_max")):
+                    raise InvalidArgumentError(
+                        f"--reward {reward}"
+                        + ("" if v_max is None else f" --v-max {v_max}")
+                        + f" differs from the run's reward {kept}; a resumed run keeps the "
+                        "reward it was started with (leave out --reward and --v-max)"
+                    )
             if not run.file(CHECKPOINT).is_file():
                 raise RunFolderError(
                     f"{str(run_dir)!r} holds a run that stopped before its first checkpoint; "
@@ -266,7 +294,7 @@ def _train(
         run = RunFolder(run_dir, resume=False, markers=RUN_MARKERS, command=command)
         if run.holds_run():  # said before any work; the lock re-checks it
             run.open()
-        agent = cls(env_id, config=cfg)
+        agent = cls(reward_env(env_id, reward, cfg.n_envs, v_max), config=cfg)
         with run:
             _start_line(info, run, agent, total, resumed=False)
             agent.learn(total, progress=progress and not as_json, run_dir=run)
@@ -310,6 +338,11 @@ def _train(
             f"evaluation, {eval_episodes} episodes (greedy)",
             f"{np.mean(returns):.2f} ± {np.std(returns):.2f}",
         )
+        w = evaluate_walking(
+            agent, Path(run_dir) / "run.json", eval_episodes, agent.config.seed + 10_000
+        )
+        if w is not None:
+            table.add_row("same episodes, walking reward", f"{np.mean(w):.2f} ± {np.std(w):.2f}")
     table.add_row("run folder", str(run_dir))
     console.print(table)
 
@@ -410,16 +443,24 @@ def eval_command(
     import numpy as np
 
     from policylab.deep.common.evaluation import evaluate
-    from policylab.deep.io import load
+    from policylab.deep.common.walking import evaluate_walking
+    from policylab.deep.io import checkpoint_path, load
 
     check_count(episodes, "--episodes")
     check_seed(seed, "--seed")
     agent = load(run_dir)
     r = evaluate(agent, episodes=episodes, seed=seed, deterministic=not stochastic)
+    run_json = checkpoint_path(run_dir).parent / "run.json"
+    w = evaluate_walking(agent, run_json, episodes, seed, deterministic=not stochastic)
     if as_json:
-        print_json(
-            {"mean": float(np.mean(r)), "std": float(np.std(r)), "returns": [float(x) for x in r]}
-        )
+        doc: dict[str, Any] = {
+            "mean": float(np.mean(r)), "std": float(np.std(r)), "returns": [float(x) for x in r]
+        }  # fmt: skip
+        if w is not None:  # the same episodes under the walking reward the run trained on
+            doc["walking"] = {
+                "mean": float(np.mean(w)), "std": float(np.std(w)), "returns": [float(x) for x in w]
+            }  # fmt: skip
+        print_json(doc)
         return
     table = Table(title=f"{agent.algo} on {agent.env_id}: {episodes} episodes")
     table.add_column("mean", justify="right")
@@ -428,6 +469,11 @@ def eval_command(
     table.add_column("max", justify="right")
     table.add_row(*(f"{f(r):.2f}" for f in (np.mean, np.std, np.min, np.max)))
     console.print(table)
+    if w is not None:
+        console.print(
+            f"the same episodes under the walking reward: mean {np.mean(w):.2f}, "
+            f"std {np.std(w):.2f}"
+        )
 
 
 def record_command(
@@ -453,6 +499,7 @@ def record_command(
 ) -> None:
     """Write an animation (GIF, PNG or WebP) of one greedy episode of a trained agent."""
     from policylab.deep.io import checkpoint_path, load
+    from policylab.deep.mujoco_gl import use_offscreen_gl
     from policylab.deep.record import ANIMATION_FORMATS, record_gif
 
     check_seed(seed, "--seed")
@@ -463,6 +510,7 @@ def record_command(
         check_output_file(out, "--out", suffixes=ANIMATION_FORMATS)
     target = out or checkpoint_path(run_dir).parent / "episode.gif"
     agent = load(run_dir)
+    use_offscreen_gl(agent.env_id)  # MuJoCo walkers render headless (EGL or OSMesa)
     ret, n = record_gif(agent, target, seed=seed, max_steps=max_steps, fps=fps, every=every)
     console.print(f"wrote {target}: {n} frames, episode return {ret:.2f}")
 

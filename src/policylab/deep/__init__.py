@@ -1,4 +1,4 @@
-"""Deep RL with PyTorch: DQN and PPO on any Gymnasium environment.
+"""Deep RL with PyTorch: DQN, PPO, SAC and TD3 on any Gymnasium environment.
 
 Imported lazily (``import policylab`` does not import torch; ``policylab.deep`` does)::
 
@@ -31,9 +31,12 @@ from policylab.deep.common import (
     n_step_targets,
     save_checkpoint,
 )
+from policylab.deep.common.walking import WalkingReward, walking_reward, walking_vec_env
 from policylab.deep.dqn import DQN, DQNConfig
 from policylab.deep.io import load
 from policylab.deep.ppo import PPO, PPOConfig
+from policylab.deep.sac import SAC, SACConfig
+from policylab.deep.td3 import TD3, TD3Config
 from policylab.deep.zoo import ALGORITHMS, default_config
 
 __all__ = [
@@ -41,6 +44,8 @@ __all__ = [
     "DQN",
     "MLP",
     "PPO",
+    "SAC",
+    "TD3",
     "Agent",
     "DQNConfig",
     "NatureCNN",
@@ -52,7 +57,10 @@ __all__ = [
     "RolloutBuffer",
     "RunLogger",
     "RunningMeanStd",
+    "SACConfig",
+    "TD3Config",
     "TrainingProgress",
+    "WalkingReward",
     "default_config",
     "evaluate",
     "gae_advantages",
@@ -62,4 +70,6 @@ __all__ = [
     "make_vec_env",
     "n_step_targets",
     "save_checkpoint",
+    "walking_reward",
+    "walking_vec_env",
 ]

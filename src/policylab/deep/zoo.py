@@ -14,11 +14,13 @@ from policylab.deep.common.agent import Agent
 from policylab.deep.common.envs import is_atari_id
 from policylab.deep.dqn.agent import DQN
 from policylab.deep.ppo.agent import PPO
+from policylab.deep.sac.agent import SAC
+from policylab.deep.td3.agent import TD3
 from policylab.exceptions import InvalidArgumentError
 
 __all__ = ["ALGORITHMS", "TUNED", "ZOO", "default_config", "has_tuned_settings"]
 
-ALGORITHMS: dict[str, type[Agent]] = {"ppo": PPO, "dqn": DQN}
+ALGORITHMS: dict[str, type[Agent]] = {"ppo": PPO, "dqn": DQN, "sac": SAC, "td3": TD3}
 
 # "steps" is the zoo's n_timesteps; "normalize" is VecNormalize (observations and rewards).
 ZOO: dict[str, dict[str, dict[str, Any]]] = {
@@ -176,6 +178,65 @@ ZOO: dict[str, dict[str, dict[str, Any]]] = {
         ),
     },
 }
+
+# MuJoCo walkers: the zoo's "mujoco-defaults" (SB3's defaults but for the step budget and
+# 10k random steps first; 2M steps for Humanoid; TD3 with N(0, 0.1^2) action noise and
+# SB3's TD3 networks of 400 and 300 units). For PPO the zoo normalises observations
+# and rewards and otherwise keeps SB3's PPO defaults, which differ from PPOConfig's.
+_WALKERS = ("HalfCheetah-v5", "Hopper-v5", "Walker2d-v5", "Ant-v5", "Humanoid-v5")
+
+
+def _walker_budget(env_id: str) -> int:
+    return 2_000_000 if env_id.startswith("Humanoid") else 1_000_000
+
+
+ZOO["sac"] = {
+    "Pendulum-v1": dict(steps=20_000, learning_rate=1e-3),
+    **{
+        e: dict(steps=_walker_budget(e), learning_starts=10_000, hidden=(256, 256))
+        for e in _WALKERS
+    },
+}
+ZOO["td3"] = {
+    "Pendulum-v1": dict(
+        steps=20_000,
+        gamma=0.98,
+        buffer_size=200_000,
+        learning_starts=10_000,
+        action_noise=0.1,
+        learning_rate=1e-3,
+        hidden=(400, 300),
+    ),
+    **{
+        e: dict(
+            steps=_walker_budget(e),
+            learning_starts=10_000,
+            action_noise=0.1,
+            learning_rate=1e-3,
+            hidden=(400, 300),
+        )
+        for e in _WALKERS
+    },
+}
+ZOO["ppo"].update(
+    {
+        e: dict(
+            steps=_walker_budget(e),
+            normalize=True,
+            n_envs=1,
+            n_steps=2048,
+            batch_size=64,
+            n_epochs=10,
+            gae_lambda=0.95,
+            gamma=0.99,
+            ent_coef=0.0,
+            learning_rate=3e-4,
+            clip_range=0.2,
+            anneal_lr=False,
+        )
+        for e in _WALKERS
+    }
+)
 
 # policylab's own changes on top of the zoo (same keys). SB3's DQN is vanilla DQN;
 # policylab's default is Double DQN (DQNConfig.double_q).

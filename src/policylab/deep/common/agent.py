@@ -40,6 +40,7 @@ from policylab.deep.common.envs import (
 from policylab.deep.common.logging import RunLogger, TrainingProgress
 from policylab.deep.common.networks import activation
 from policylab.deep.common.normalize import ObservationNormalizer
+from policylab.deep.common.walking import resume_env, reward_description
 from policylab.exceptions import CheckpointError, InvalidArgumentError, TrainingInterrupted
 from policylab.runs import RUN_JSON, RunFolder
 from policylab.validation import check_count
@@ -391,6 +392,7 @@ class Agent(ABC):
         doc = {
             "algo": self.algo, "env_id": self.env_id, "total_steps": self.target_steps,
             "config": _jsonable(dataclasses.asdict(self.config)),
+            "reward": reward_description(self._envs),
         }  # fmt: skip
         run.write_json(RUN_JSON, doc)
 
@@ -402,6 +404,8 @@ class Agent(ABC):
         folder's log is cut back to the checkpoint's step first); episodes in progress
         at the checkpoint are restarted.
         """
+        if env is None:  # a run on the walking reward continues on it
+            env = resume_env(run_dir)
         agent = cls.load(Path(run_dir) / CHECKPOINT, env=env)
         agent._run_path = Path(run_dir).resolve()
         return agent

@@ -6,6 +6,7 @@ fixes the network without touching torch's global random state.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 
@@ -16,7 +17,16 @@ from torch import nn
 
 from policylab.exceptions import InvalidArgumentError
 
-__all__ = ["MLP", "NatureCNN", "build_torso", "clip_grad_norm", "init_layer", "is_image_space"]
+__all__ = [
+    "MLP",
+    "ActorMLP",
+    "NatureCNN",
+    "TwinQNetwork",
+    "build_torso",
+    "clip_grad_norm",
+    "init_layer",
+    "is_image_space",
+]
 
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 
@@ -180,3 +190,111 @@ def clip_grad_norm(params: Sequence[torch.Tensor], max_norm: float) -> float:
     coef = torch.clamp(max_norm / (norm + 1e-6), max=1.0)
     torch._foreach_mul_(grads, coef)
     return float(norm)
+
+
+class TwinQNetwork(nn.Module):
+    """Two critics Q_1(s, a), Q_2(s, a) evaluated together (SAC, TD3).
+
+    Each layer of the two MLPs is one (2, in, out) weight tensor, so both critics run as
+    one batched matrix product per layer (``torch.baddbmm``): half the kernel launches
+    of two separate networks, with the same arithmetic. The first layer keeps separate
+    weights for the observation and the action, W_s s + W_a a + b (the same layer as
+    W [s; a] + b), so that an actor's loss, which needs dQ/da only, never multiplies
+    gradients through W_s. Weights are orthogonal (gain sqrt(2) in hidden layers, 1 at
+    the output), biases zero.
+
+    Args:
+        obs_dim: Observation features.
+        action_dim: Action dimensions.
+        hidden: Hidden layer sizes of each critic (at least one layer).
+        act: Activation name (tanh, relu, elu).
+        generator: Generator of the initial weights.
+    """
+
+    def __init__(
+        self,
+        obs_dim: int,
+        action_dim: int,
+        hidden: Sequence[int],
+        act: str = "relu",
+        generator: torch.Generator | None = None,
+    ) -> None:
+        super().__init__()
+        if not hidden:
+            raise InvalidArgumentError("the twin critics need at least one hidden layer")
+        dims = [obs_dim + action_dim, *hidden, 1]
+        self.obs_dim = obs_dim
+        self.weights = nn.ParameterList()
+        self.biases = nn.ParameterList()
+        for i, (d_in, d_out) in enumerate(itertools.pairwise(dims)):
+            w = torch.empty(2, d_in, d_out)
+            gain = 1.0 if i == len(dims) - 2 else math.sqrt(2)
+            for k in range(2):  # orthogonal init acts on (out, in) matrices
+                w[k] = nn.init.orthogonal_(torch.empty(d_out, d_in), gain, generator).T
+            if i == 0:
+                self.weights.append(nn.Parameter(w[:, :obs_dim].contiguous()))
+                self.weights.append(nn.Parameter(w[:, obs_dim:].contiguous()))
+            else:
+                self.weights.append(nn.Parameter(w))
+            self.biases.append(nn.Parameter(torch.zeros(2, 1, d_out)))
+        act_cls = activation(act)
+        # in place where the activation allows it (its input is no saved tensor)
+        self.act = act_cls(inplace=True) if act_cls in (nn.ReLU, nn.ELU) else act_cls()
+
+    def forward(
+        self,
+        obs: torch.Tensor,
+        actions: torch.Tensor,
+        params: Sequence[torch.Tensor] | None = None,
+    ) -> torch.Tensor:
+        """(2, B) Q_1(s, a) and Q_2(s, a) for a batch of (B, obs_dim) and (B, action_dim).
+
+        ``params`` (weights then biases, as :meth:`parameters` orders them) evaluates the
+        critics with other tensors, e.g. detached ones, so that an actor's loss gets no
+        critic weight gradients; their first-axis slices ``[:1]`` evaluate Q_1 alone
+        (shape (1, B)).
+        """
+        ps = list(self.parameters()) if params is None else list(params)
+        n = len(ps) // 2  # n + 1 weights (the first layer's two) and n biases
+        ws, bs = ps[: n + 1], ps[n + 1 :]
+        k = len(ws[0])  # 2, or 1 with the first critic's tensors alone
+        s = obs.reshape(len(obs), -1).unsqueeze(0).expand(k, -1, -1)
+        h = torch.baddbmm(bs[0], s, ws[0])
+        h = torch.baddbmm(h, actions.unsqueeze(0).expand(k, -1, -1), ws[1])
+        for i in range(1, n):
+            h = torch.baddbmm(bs[i], self.act(h), ws[i + 1])
+        return h.squeeze(-1)
+
+
+class ActorMLP(nn.Module):
+    """The MLP of a continuous-action actor: ``heads`` outputs per action dimension.
+
+    The output layer starts small (orthogonal gain 0.01), so the first actions sit near
+    the middle of the action space.
+
+    Args:
+        obs_dim: Observation features.
+        action_dim: m, the action dimensions.
+        hidden: Hidden layer sizes.
+        act: Activation name (tanh, relu, elu).
+        generator: Generator of the initial weights.
+        heads: Outputs per action dimension (1: an action; 2: a mean and a log std).
+    """
+
+    def __init__(
+        self,
+        obs_dim: int,
+        action_dim: int,
+        hidden: Sequence[int],
+        act: str = "relu",
+        generator: torch.Generator | None = None,
+        heads: int = 1,
+    ) -> None:
+        super().__init__()
+        self.action_dim = action_dim
+        self.net = MLP(obs_dim, hidden, heads * action_dim, act, out_gain=0.01, generator=generator)
+
+    def features(self, obs: torch.Tensor) -> torch.Tensor:
+        """The MLP's (B, heads * m) outputs for a batch of observations."""
+        out: torch.Tensor = self.net(obs.reshape(len(obs), -1))
+        return out

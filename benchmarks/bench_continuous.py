@@ -1,0 +1,215 @@
+"""SAC and TD3 against Stable-Baselines3: env steps per second on HalfCheetah-v5, Pendulum-v1.
+
+Speed: both libraries train the same number of steps with the same hyperparameters
+(SB3's defaults: batch 256, buffer, tau 0.005, one gradient step per env step after
+``--learning-starts`` random steps; SAC 256x256 networks with a learned temperature,
+TD3 400x300 networks with N(0, 0.1^2) exploration noise), on one torch thread, one
+library after the other and alternating their order over ``--repeats`` rounds, so
+that a loaded machine slows both alike. Reported: wall-clock env steps per second and
+CPU milliseconds per gradient update (process time, which counts only the CPU this
+process got).
+
+Quality (``--pendulum``): policylab's SAC and TD3 with the zoo's Pendulum-v1 settings
+for 20k steps, on ``--seeds`` seeds, evaluated greedily on 10 episodes.
+
+    python benchmarks/bench_continuous.py                  # the speed table
+    python benchmarks/bench_continuous.py --pendulum       # the Pendulum-v1 table
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import write_section
+
+warnings.filterwarnings("ignore")
+
+NETS = {"sac": (256, 256), "td3": (400, 300)}
+
+
+@dataclass
+class Timing:
+    lib: str
+    algo: str
+    seconds: float
+    cpu_seconds: float
+    steps: int
+    updates: int
+
+
+def _common(args: argparse.Namespace) -> dict[str, object]:
+    return dict(
+        learning_starts=args.learning_starts,
+        buffer_size=args.buffer_size,
+        batch_size=256,
+        tau=0.005,
+        gamma=0.99,
+        train_freq=1,
+        gradient_steps=1,
+    )
+
+
+def time_policylab(algo: str, args: argparse.Namespace, seed: int) -> Timing:
+    import policylab as pl
+
+    cls = pl.deep.ALGORITHMS[algo]
+    extra: dict[str, object] = {"action_noise": 0.1} if algo == "td3" else {}
+    agent = cls(args.env, seed=seed, hidden=NETS[algo], **_common(args), **extra)
+    t, c = time.perf_counter(), time.process_time()
+    agent.learn(args.steps)
+    return Timing(
+        "policylab", algo, time.perf_counter() - t, time.process_time() - c,
+        agent.num_timesteps, agent.n_updates,
+    )  # fmt: skip
+
+
+def time_sb3(algo: str, args: argparse.Namespace, seed: int) -> Timing:
+    import gymnasium as gym
+    from stable_baselines3 import SAC, TD3
+    from stable_baselines3.common.noise import NormalActionNoise
+
+    env = gym.make(args.env)
+    kw: dict[str, object] = dict(
+        seed=seed, device="cpu", policy_kwargs=dict(net_arch=list(NETS[algo])), **_common(args)
+    )
+    if algo == "td3":
+        m = env.action_space.shape[0]
+        model = TD3(
+            "MlpPolicy", env, action_noise=NormalActionNoise(np.zeros(m), 0.1 * np.ones(m)), **kw
+        )
+    else:
+        model = SAC("MlpPolicy", env, **kw)
+    t, c = time.perf_counter(), time.process_time()
+    model.learn(args.steps)
+    return Timing(
+        "SB3", algo, time.perf_counter() - t, time.process_time() - c,
+        int(model.num_timesteps), int(model._n_updates),
+    )  # fmt: skip
+
+
+def _load() -> str:
+    try:
+        return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    except OSError:
+        return f"load average {os.getloadavg()}"
+
+
+def speed(args: argparse.Namespace) -> None:
+    import torch
+
+    torch.set_num_threads(1)
+    loads = [_load()]
+    results: list[Timing] = []
+    for algo in args.algos:
+        for r in range(args.repeats):
+            order = [time_policylab, time_sb3] if r % 2 == 0 else [time_sb3, time_policylab]
+            for fn in order:
+                res = fn(algo, args, r)
+                results.append(res)
+                print(
+                    f"{res.lib:9s} {algo}: {res.steps} steps, {res.updates} updates, "
+                    f"{res.seconds:.1f} s, {res.steps / res.seconds:.0f} steps/s, "
+                    f"{1000 * res.cpu_seconds / max(res.updates, 1):.2f} CPU ms/update",
+                    flush=True,
+                )
+    loads.append(_load())
+    rows = [
+        "| algorithm | library | runs | updates | wall-clock s (median) | env steps/s "
+        "| CPU ms per update | policylab / SB3 steps/s |",
+        "|---|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    for algo in args.algos:
+        med: dict[str, float] = {}
+        for lib in ("SB3", "policylab"):
+            rs = [x for x in results if x.algo == algo and x.lib == lib]
+            sec = float(np.median([x.seconds for x in rs]))
+            cpu = float(np.median([1000 * x.cpu_seconds / max(x.updates, 1) for x in rs]))
+            med[lib] = rs[0].steps / sec
+            ratio = f"{med['policylab'] / med['SB3']:.2f}x" if lib == "policylab" else ""
+            rows.append(
+                f"| {algo.upper()} | {lib} | {len(rs)} | {rs[0].updates:,} | {sec:.1f} "
+                f"| {med[lib]:.0f} | {cpu:.2f} | {ratio} |"
+            )
+    body = (
+        f"{args.env}, {args.steps:,} env steps with {args.learning_starts:,} random steps first "
+        f"(one gradient update per later step), batch 256, one torch thread, both libraries "
+        f"in the same run, alternating. Load before and after (2 cores shared with other "
+        f"developers' jobs, so absolute times are inflated and noisy; the ratio is the "
+        f"measurement):\n\n    {loads[0]}\n    {loads[1]}\n\n" + "\n".join(rows)
+    )
+    print(body)
+    if args.write:
+        write_section(
+            "Deep RL: SAC and TD3 speed on HalfCheetah-v5",
+            f"python benchmarks/bench_continuous.py --steps {args.steps} --learning-starts "
+            f"{args.learning_starts} --repeats {args.repeats}",
+            body,
+        )
+
+
+def pendulum(args: argparse.Namespace) -> None:
+    import torch
+
+    import policylab as pl
+
+    torch.set_num_threads(1)
+    loads = [_load()]
+    published = {"sac": -157.0, "td3": -152.0}
+    rows = [
+        "| algorithm | seed | return (10 greedy episodes) | SB3 zoo's published | wall-clock s |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for algo in args.algos:
+        fields, steps = pl.deep.default_config(algo, "Pendulum-v1")
+        for seed in range(args.seeds):
+            t = time.perf_counter()
+            agent = pl.deep.ALGORITHMS[algo]("Pendulum-v1", seed=seed, **fields)
+            agent.learn(int(steps or 20_000))
+            sec = time.perf_counter() - t
+            ret = float(np.mean(pl.deep.evaluate(agent, episodes=10, seed=1000 + seed)))
+            print(f"{algo} seed {seed}: {ret:.1f} ({sec:.0f} s)", flush=True)
+            rows.append(
+                f"| {algo.upper()} | {seed} | {ret:.1f} | {published[algo]:.0f} | {sec:.0f} |"
+            )
+    loads.append(_load())
+    body = (
+        "policylab's zoo defaults for Pendulum-v1 (`policylab train sac|td3 Pendulum-v1`), "
+        "20,000 steps. Load before and after:\n\n"
+        f"    {loads[0]}\n    {loads[1]}\n\n" + "\n".join(rows)
+    )
+    print(body)
+    if args.write:
+        write_section(
+            "Deep RL: SAC and TD3 on Pendulum-v1",
+            f"python benchmarks/bench_continuous.py --pendulum --seeds {args.seeds}",
+            body,
+        )
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--env", default="HalfCheetah-v5")
+    p.add_argument("--steps", type=int, default=3000)
+    p.add_argument("--learning-starts", type=int, default=1000)
+    p.add_argument("--buffer-size", type=int, default=100_000)
+    p.add_argument("--repeats", type=int, default=2)
+    p.add_argument("--algos", nargs="+", default=["sac", "td3"])
+    p.add_argument("--pendulum", action="store_true", help="the Pendulum-v1 quality table")
+    p.add_argument("--seeds", type=int, default=3)
+    p.add_argument("--no-write", dest="write", action="store_false")
+    args = p.parse_args()
+    pendulum(args) if args.pendulum else speed(args)
+
+
+if __name__ == "__main__":
+    main()

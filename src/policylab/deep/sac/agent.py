@@ -1,0 +1,202 @@
+"""Soft Actor-Critic (Haarnoja et al. 2018) with twin critics and automatic entropy tuning."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import torch
+
+from policylab.deep.common.buffers import ReplayBatch
+from policylab.deep.common.config import check, documented, option
+from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
+from policylab.deep.common.off_policy import OffPolicyAgent, OffPolicyConfig, Tensors
+from policylab.deep.sac.losses import entropy_coef_loss, sac_actor_loss
+from policylab.deep.sac.networks import SquashedGaussianActor
+from policylab.exceptions import InvalidArgumentError
+
+__all__ = ["SAC", "SACConfig"]
+
+
+@documented
+@dataclasses.dataclass
+class SACConfig(OffPolicyConfig):
+    """Hyperparameters of :class:`SAC` (the same names in config files and the CLI)."""
+
+    ent_coef: float | str = option(
+        "auto",
+        "Entropy temperature alpha: a number, or 'auto' ('auto_0.1': starting at 0.1) to "
+        "learn it toward target_entropy.",
+    )
+    target_entropy: float | str = option(
+        "auto", "Entropy the learned alpha aims at ('auto': minus the action dimension)."
+    )
+    target_update_interval: int = option(
+        1, "Gradient steps between Polyak updates of the target critics."
+    )
+
+    def validate(self) -> None:
+        """Raise InvalidArgumentError on values out of range."""
+        super().validate()
+        _initial_alpha(self.ent_coef)
+        if isinstance(self.target_entropy, str):
+            check(
+                self.target_entropy == "auto",
+                f"target_entropy must be a number or 'auto'; got {self.target_entropy!r}",
+            )
+        check(self.target_update_interval >= 1, "target_update_interval must be >= 1")
+
+
+def _initial_alpha(ent_coef: float | str) -> tuple[float, bool]:
+    """(alpha at the start, whether it is learned) of an ``ent_coef`` setting."""
+    if isinstance(ent_coef, str):
+        if ent_coef == "auto":
+            return 1.0, True
+        if ent_coef.startswith("auto_"):
+            try:
+                value = float(ent_coef[5:])
+            except ValueError:
+                value = -1.0
+            if value > 0:
+                return value, True
+        raise InvalidArgumentError(
+            f"ent_coef must be a number > 0, 'auto' or 'auto_<start value>'; got {ent_coef!r}"
+        )
+    if not ent_coef > 0 or not math.isfinite(ent_coef):
+        raise InvalidArgumentError(f"ent_coef must be > 0; got {ent_coef!r}")
+    return float(ent_coef), False
+
+
+class SAC(OffPolicyAgent):
+    """SAC: a squashed Gaussian policy, twin soft Q critics, and a learned temperature.
+
+    Each gradient step on a minibatch (S, A, R, S', d) of the replay buffer:
+
+    1. critics: one Adam step on sum_i E[(Q_i(S, A) - y)^2] / 2 with the soft target
+       y = R + d (min_i Q'_i(S', A') - alpha log pi(A' | S')), A' ~ pi(. | S');
+    2. actor: one step on E[alpha log pi(a | S) - min_i Q_i(S, a)], a ~ pi(. | S) (the
+       critics' weights held constant, so their gradients are never computed);
+    3. alpha, when ``ent_coef`` is learned: one step on J(alpha)
+       (:func:`~policylab.deep.sac.losses.entropy_coef_loss`) with the same a;
+    4. every ``target_update_interval`` steps, Q' <- tau Q + (1 - tau) Q'.
+
+    Both losses use alpha from before this step, as in Stable-Baselines3, so the order
+    of the alpha step does not change the result.
+
+    Actions are tanh outputs rescaled to the bounds of the env's ``Box`` action space.
+
+    Example:
+        >>> import policylab as pl
+        >>> agent = pl.deep.SAC("Pendulum-v1", learning_rate=1e-3)  # doctest: +SKIP
+        >>> agent.learn(20_000)                                     # doctest: +SKIP
+    """
+
+    algo = "sac"
+    config_class = SACConfig
+    config: SACConfig
+
+    def _build_networks(self) -> None:
+        cfg = self.config
+        g = self.torch_gen
+        self.actor = SquashedGaussianActor(
+            self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, g
+        )
+        self._build_critics()
+        self._actor_params = list(self.actor.parameters())
+        self._target_params = list(self.critic_target.parameters())
+        lr = cfg.learning_rate
+        alpha0, self.learn_alpha = _initial_alpha(cfg.ent_coef)
+        self.log_alpha = torch.tensor(math.log(alpha0), requires_grad=self.learn_alpha)
+        # log alpha steps with the actor, in one Adam (Adam treats each tensor on its own,
+        # so this is two separate Adam updates in one call)
+        groups: list[dict[str, Any]] = [{"params": self._actor_params}]
+        if self.learn_alpha:
+            groups.append({"params": [self.log_alpha]})
+        self.actor_optimizer = torch.optim.Adam(groups, lr=lr, fused=True)
+        te = cfg.target_entropy
+        self.target_entropy = -float(self.action_dim) if te == "auto" else float(te)
+
+    @property
+    def metric_names(self) -> tuple[str, ...]:
+        """The statistics of each update (``ent_coef_loss`` when alpha is learned)."""
+        names = ("critic_loss", "actor_loss", "q_mean", "ent_coef", "entropy")
+        return (*names, "ent_coef_loss") if self.learn_alpha else names
+
+    @property
+    def alpha(self) -> float:
+        """The entropy temperature now."""
+        return float(self.log_alpha.detach().exp())
+
+    def _policy(self, obs: torch.Tensor) -> torch.Tensor:
+        out: torch.Tensor = self.actor(obs)
+        return out
+
+    def _explore(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.actor.sample(obs, self.torch_gen, log_prob=False)[0]
+
+    def _train_step(self, batch: ReplayBatch) -> Tensors:
+        cfg = self.config
+        obs, actions, rewards, next_obs, discounts = self._batch_tensors(batch)
+        stats: Tensors = {}
+
+        # the policy's actions and log-probabilities at S, and alpha before this step
+        actions_pi, log_prob = self.actor.sample(obs, self.torch_gen)
+        assert log_prob is not None
+        alpha = self.log_alpha.detach().exp()
+
+        # 1. the critics, toward the soft clipped double-Q target
+        with torch.no_grad():
+            next_actions, next_log_prob = self.actor.sample(next_obs, self.torch_gen)
+            assert next_log_prob is not None
+            next_q = self.critic_target(next_obs, next_actions)
+            y = clipped_double_q_targets(rewards, discounts, next_q, next_log_prob, alpha)
+        critic_loss, q = self._critic_step(obs, actions, y)
+
+        # 2. the actor, through the updated critics with their weights held constant, and
+        # 3. alpha (its loss reaches log alpha only: log pi is held constant in it)
+        actor_loss = sac_actor_loss(log_prob, self._critic_constant(obs, actions_pi), alpha)
+        loss = actor_loss
+        if self.learn_alpha:
+            alpha_loss = entropy_coef_loss(self.log_alpha, log_prob, self.target_entropy)
+            loss = actor_loss + alpha_loss
+            stats["ent_coef_loss"] = alpha_loss.detach()
+        self.actor_optimizer.zero_grad(set_to_none=True)
+        loss.backward()  # type: ignore[no-untyped-call]
+        self._clip_grads(self._actor_params)
+        self.actor_optimizer.step()
+
+        # 4. the target critics
+        self.n_updates += 1
+        if self.n_updates % cfg.target_update_interval == 0:
+            polyak_update(self._target_params, self._critic_params, cfg.tau)
+        stats.update(
+            critic_loss=critic_loss,
+            actor_loss=actor_loss.detach(),
+            q_mean=q.mean(),
+            ent_coef=alpha,
+            entropy=-log_prob.detach().mean(),
+        )
+        return stats
+
+    def _network_state(self, training_state: bool) -> dict[str, Any]:
+        state: dict[str, Any] = {
+            "actor": self.actor.state_dict(),
+            "critic": self.critic.state_dict(),
+            "critic_target": self.critic_target.state_dict(),
+            "ent_coef": {"log_alpha": self.log_alpha.detach().clone()},
+        }
+        if training_state:
+            state["actor_optimizer"] = self.actor_optimizer.state_dict()
+            state["critic_optimizer"] = self.critic_optimizer.state_dict()
+        return state
+
+    def _load_network_state(self, tensors: dict[str, Any]) -> None:
+        self.actor.load_state_dict(tensors["actor"])
+        self.critic.load_state_dict(tensors["critic"])
+        self.critic_target.load_state_dict(tensors["critic_target"])
+        with torch.no_grad():
+            self.log_alpha.copy_(tensors["ent_coef"]["log_alpha"])
+        if "actor_optimizer" in tensors:
+            self.actor_optimizer.load_state_dict(tensors["actor_optimizer"])
+            self.critic_optimizer.load_state_dict(tensors["critic_optimizer"])

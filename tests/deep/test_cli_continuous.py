@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
-from test_cli import _run  # the deep CLI tests' runner (this folder is on sys.path)
+from cli_helpers import run_cli as _run
 
 SMALL = ["--set", "hidden=[16]", "--set", "learning_starts=50", "--set", "batch_size=16",
          "--set", "buffer_size=1000", "--no-progress"]  # fmt: skip

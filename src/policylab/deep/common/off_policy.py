@@ -31,6 +31,7 @@ from policylab.deep.common.config import check, option
 from policylab.deep.common.losses import twin_q_loss
 from policylab.deep.common.networks import TwinQNetwork, clip_grad_norm
 from policylab.exceptions import InvalidArgumentError, NonFiniteError
+from policylab.validation import fmt_number
 
 __all__ = ["OffPolicyAgent", "OffPolicyConfig", "Tensors", "check_bounded_box"]
 
@@ -266,9 +267,11 @@ class OffPolicyAgent(Agent):
             if not np.all(np.isfinite(value)):
                 flat = np.asarray(value, dtype=np.float64).reshape(len(value), -1)
                 env = int(np.flatnonzero(~np.isfinite(flat).all(axis=1))[0])
+                got = value[env]
+                shown = fmt_number(got) if np.ndim(got) == 0 else np.array2string(flat[env])
                 raise NonFiniteError(
                     f"env {env} returned a non-finite {name} at env step "
-                    f"{self.num_timesteps:,}: {value[env]!r}; the run folder keeps its last "
+                    f"{self.num_timesteps:,}: {shown}; the run folder keeps its last "
                     "good checkpoint"
                 )
 

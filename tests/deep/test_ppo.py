@@ -111,3 +111,26 @@ def test_ppo_solves_cartpole() -> None:
 
     agent.learn(60_000, callback=check)
     assert solved, "PPO did not reach a mean return of 475 over 100 episodes in 60k steps"
+
+
+def test_tanh_module_is_tanh_in_value_and_gradient() -> None:
+    from policylab.deep.common.networks import Tanh
+
+    x = torch.linspace(-30.0, 30.0, 4001, dtype=torch.float32, requires_grad=True)
+    y = Tanh()(x)
+    y.sum().backward()  # type: ignore[no-untyped-call]
+    assert x.grad is not None
+    ref = torch.tanh(x.detach().double())
+    assert torch.allclose(y.detach().double(), ref, atol=3e-7, rtol=0)
+    assert torch.allclose(x.grad.double(), 1 - ref**2, atol=1e-6, rtol=0)
+    assert y.detach().abs().max().item() <= 1.0  # saturates at +-1, never beyond
+
+
+def test_default_config_untuned_is_the_zoo_exactly() -> None:
+    tuned, _ = pl.deep.default_config("ppo", "CartPole-v1")
+    zoo, steps = pl.deep.default_config("ppo", "CartPole-v1", tuned=False)
+    assert steps == 100_000
+    assert (zoo["n_envs"], zoo["n_steps"], zoo["batch_size"], zoo["n_epochs"]) == (8, 32, 256, 20)
+    assert "activation" not in zoo and tuned["activation"] == "relu"
+    dqn, _ = pl.deep.default_config("dqn", "Acrobot-v1", tuned=False)
+    assert dqn["gradient_steps"] == dqn["train_freq"] == 4  # the zoo's -1: one per env step

@@ -224,10 +224,10 @@ def table(results: list[Result], full_budget: bool = False) -> str:
 # ---------------------------------------------------------------------------
 
 PER_STEP_STEPS = {
-    ("ppo", "CartPole-v1"): 40_960,
-    ("dqn", "CartPole-v1"): 20_480,
-    ("ppo", "Acrobot-v1"): 40_960,
-    ("dqn", "Acrobot-v1"): 8_000,
+    ("ppo", "CartPole-v1"): 20_480,
+    ("dqn", "CartPole-v1"): 10_240,
+    ("ppo", "Acrobot-v1"): 32_768,
+    ("dqn", "Acrobot-v1"): 4_000,
     ("ppo", "LunarLander-v3"): 65_536,
     ("dqn", "LunarLander-v3"): 8_000,
 }
@@ -308,20 +308,19 @@ class StepResult:
     algo: str
     env_id: str
     steps_per_second: list[float] = field(default_factory=list)
+    steps_per_cpu_second: list[float] = field(default_factory=list)
     phases: dict[str, float] = field(default_factory=dict)  # fractions of the profiled time
 
 
-def _timed_learn(library: str, algo: str, env_id: str, steps: int, seed: int) -> float:
-    """Env steps per second of one unprofiled training run of ``steps`` steps."""
-    if library == "policylab":
-        agent = _make_policylab(algo, env_id, seed)
-        t0 = time.perf_counter()
-        agent.learn(steps)
-        return agent.num_timesteps / (time.perf_counter() - t0)
-    model = _make_sb3(algo, env_id, seed)
-    t0 = time.perf_counter()
+def _timed_learn(
+    library: str, algo: str, env_id: str, steps: int, seed: int
+) -> tuple[float, float]:
+    """Env steps per wall-clock second and per CPU second of one unprofiled run."""
+    model = (_make_policylab if library == "policylab" else _make_sb3)(algo, env_id, seed)
+    t0, c0 = time.perf_counter(), time.process_time()
     model.learn(steps)
-    return model.num_timesteps / (time.perf_counter() - t0)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return model.num_timesteps / wall, model.num_timesteps / cpu
 
 
 def _profiled_phases(
@@ -383,10 +382,11 @@ def per_step(envs: list[str], algos: list[str], rounds: int) -> list[StepResult]
             pair = [StepResult(lib, algo, env_id) for lib in ("policylab", "SB3")]
             for r in range(rounds):
                 for res in pair if r % 2 == 0 else pair[::-1]:
-                    sps = _timed_learn(res.library, algo, env_id, steps, seed=r)
+                    sps, cps = _timed_learn(res.library, algo, env_id, steps, seed=r)
                     res.steps_per_second.append(sps)
-                    print(f"{res.library:9s} {algo} {env_id} round {r}: {sps:,.0f} steps/s",
-                          flush=True)  # fmt: skip
+                    res.steps_per_cpu_second.append(cps)
+                    print(f"{res.library:9s} {algo} {env_id} round {r}: {sps:,.0f} steps/s, "
+                          f"{cps:,.0f} steps/CPU-s", flush=True)  # fmt: skip
             for res in pair:
                 res.phases = _profiled_phases(res.library, algo, env_id, steps, seed=0)
                 print(f"{res.library:9s} {algo} {env_id} profile: {res.phases}", flush=True)
@@ -397,19 +397,24 @@ def per_step(envs: list[str], algos: list[str], rounds: int) -> list[StepResult]
 def per_step_table(results: list[StepResult]) -> str:
     rows = [
         "| algorithm | env | library | env steps/s: median (range) | policylab / SB3 "
+        "| env steps per CPU-second | policylab / SB3 (CPU) "
         "| env step | policy forward | update | rest |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for i in range(0, len(results), 2):
         ours, sb3 = results[i], results[i + 1]
-        ratio = statistics.median(ours.steps_per_second) / statistics.median(sb3.steps_per_second)
+        med = statistics.median
+        ratio = med(ours.steps_per_second) / med(sb3.steps_per_second)
+        cpu_ratio = med(ours.steps_per_cpu_second) / med(sb3.steps_per_cpu_second)
         for res in (ours, sb3):
-            sps = res.steps_per_second
+            sps, cps = res.steps_per_second, res.steps_per_cpu_second
             p = res.phases
             rows.append(
                 f"| {res.algo.upper()} | {res.env_id} | {res.library} | "
-                f"{statistics.median(sps):,.0f} ({min(sps):,.0f}-{max(sps):,.0f}) | "
+                f"{med(sps):,.0f} ({min(sps):,.0f}-{max(sps):,.0f}) | "
                 f"{f'{ratio:.2f}x' if res is ours else ''} | "
+                f"{med(cps):,.0f} ({min(cps):,.0f}-{max(cps):,.0f}) | "
+                f"{f'{cpu_ratio:.2f}x' if res is ours else ''} | "
                 + " | ".join(f"{100 * p[k]:.0f}%" for k in ("env step", "policy forward",
                                                             "update", "rest"))
                 + " |"
@@ -458,6 +463,8 @@ def main() -> None:
             "torch.set_num_threads(1), the same number of env steps "
             f"({budgets}), "
             f"{args.rounds} timed runs each, the two libraries alternating run by run. "
+            "Steps per CPU-second divide by the process's CPU time (`time.process_time`), "
+            "which the other jobs on the machine disturb less than the wall clock. "
             "The split (env step, policy forward on the acting path, update, rest) is the "
             "share of one further cProfile'd run of each (cProfile adds a per-call cost, "
             "so it overstates Python-heavy parts)."

@@ -113,19 +113,6 @@ def test_ppo_solves_cartpole() -> None:
     assert solved, "PPO did not reach a mean return of 475 over 100 episodes in 60k steps"
 
 
-def test_tanh_module_is_tanh_in_value_and_gradient() -> None:
-    from policylab.deep.common.networks import Tanh
-
-    x = torch.linspace(-30.0, 30.0, 4001, dtype=torch.float32, requires_grad=True)
-    y = Tanh()(x)
-    y.sum().backward()  # type: ignore[no-untyped-call]
-    assert x.grad is not None
-    ref = torch.tanh(x.detach().double())
-    assert torch.allclose(y.detach().double(), ref, atol=3e-7, rtol=0)
-    assert torch.allclose(x.grad.double(), 1 - ref**2, atol=1e-6, rtol=0)
-    assert y.detach().abs().max().item() <= 1.0  # saturates at +-1, never beyond
-
-
 def test_default_config_untuned_is_the_zoo_exactly() -> None:
     tuned, _ = pl.deep.default_config("ppo", "CartPole-v1")
     zoo, steps = pl.deep.default_config("ppo", "CartPole-v1", tuned=False)

@@ -19,7 +19,6 @@ from policylab.exceptions import InvalidArgumentError
 __all__ = [
     "MLP",
     "NatureCNN",
-    "Tanh",
     "build_torso",
     "clip_grad_norm",
     "init_layer",
@@ -27,21 +26,7 @@ __all__ = [
 ]
 
 
-class Tanh(nn.Module):
-    """tanh(x), computed as 2 sigmoid(2x) - 1.
-
-    The same function as ``torch.nn.Tanh`` (the two agree to float32 rounding, about
-    2e-7), at about a third of its cost on CPUs where torch's vectorised tanh kernel is
-    slow (measured on the AMD EPYC machine of the benchmarks); the small tanh MLPs of
-    PPO call it four times a forward pass.
-    """
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """tanh(x), elementwise."""
-        return torch.sigmoid(x * 2.0) * 2.0 - 1.0
-
-
-_ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": Tanh, "relu": nn.ReLU, "elu": nn.ELU}
+_ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 
 
 def init_layer(layer: nn.Module, gain: float, generator: torch.Generator | None) -> nn.Module:

@@ -16,15 +16,7 @@ from torch import nn
 
 from policylab.exceptions import InvalidArgumentError
 
-__all__ = [
-    "MLP",
-    "NatureCNN",
-    "build_torso",
-    "clip_grad_norm",
-    "init_layer",
-    "is_image_space",
-]
-
+__all__ = ["MLP", "NatureCNN", "build_torso", "clip_grad_norm", "init_layer", "is_image_space"]
 
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 

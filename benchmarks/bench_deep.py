@@ -26,7 +26,9 @@ import argparse
 import os
 import statistics
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -75,10 +77,18 @@ def _evaluate(act: Any, env_id: str, seed: int) -> float:
     return float(np.mean(run_episodes(act, env_id, 100, seed=10_000 + seed, n_envs=100)))
 
 
-def run_policylab(algo: str, env_id: str, seed: int, full_budget: bool = False) -> Result:
-    fields, budget = pl.deep.default_config(algo, env_id)
+ZOO_LABEL = "policylab, zoo settings"
+
+
+def run_policylab(
+    algo: str, env_id: str, seed: int, full_budget: bool = False, tuned: bool = True
+) -> Result:
+    if tuned:
+        fields, budget = pl.deep.default_config(algo, env_id)
+    else:
+        fields, budget = identical_settings(algo, env_id), zoo_settings(algo, env_id)["steps"]
     assert budget is not None
-    res = Result("policylab", algo, env_id, seed, budget)
+    res = Result("policylab" if tuned else ZOO_LABEL, algo, env_id, seed, budget)
     agent = pl.deep.ALGORITHMS[algo](env_id, seed=seed, **fields)
     every, thr = EVAL_EVERY[env_id], THRESHOLD[env_id]
     nxt = [every]
@@ -113,32 +123,13 @@ def _linear(v: float) -> Any:
 
 
 def run_sb3(algo: str, env_id: str, seed: int, full_budget: bool = True) -> Result:
-    from stable_baselines3 import DQN, PPO
     from stable_baselines3.common.callbacks import BaseCallback
-    from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import VecNormalize
 
-    z = zoo_settings(algo, env_id)
-    budget = int(z.pop("steps"))
+    budget = int(zoo_settings(algo, env_id)["steps"])
     res = Result("SB3", algo, env_id, seed, budget)
-    normalize = z.pop("normalize", False)
-    n_envs = int(z.pop("n_envs", 1))
-    hidden = z.pop("hidden", None)
-    anneal = z.pop("anneal_lr", False)
-    venv = make_vec_env(env_id, n_envs=n_envs, seed=seed)
-    if normalize:
-        venv = VecNormalize(venv, gamma=z.get("gamma", 0.99))
-    kwargs: dict[str, Any] = dict(z)
-    if algo == "ppo":
-        lr = kwargs.pop("learning_rate", 3e-4)
-        kwargs["learning_rate"] = _linear(lr) if anneal else lr
-        if anneal:
-            kwargs["clip_range"] = _linear(kwargs.get("clip_range", 0.2))
-        model: Any = PPO("MlpPolicy", venv, seed=seed, device="cpu", **kwargs)
-    else:
-        if hidden is not None:
-            kwargs["policy_kwargs"] = {"net_arch": list(hidden)}
-        model = DQN("MlpPolicy", venv, seed=seed, device="cpu", **kwargs)
+    model = _make_sb3(algo, env_id, seed, anneal_clip=True)
+    venv = model.get_env()
+    normalize = bool(zoo_settings(algo, env_id).get("normalize", False))
     every, thr = EVAL_EVERY[env_id], THRESHOLD[env_id]
     clock = _Clock()
 
@@ -194,27 +185,30 @@ def table(results: list[Result], full_budget: bool = False) -> str:
     for algo, env_id in keys:
         by_lib = {
             lib: [r for r in results if (r.algo, r.env_id, r.library) == (algo, env_id, lib)]
-            for lib in ("policylab", "SB3")
+            for lib in ("policylab", ZOO_LABEL, "SB3")
         }
         times = {
             lib: [r.solve_seconds for r in rs if r.solve_seconds is not None]
             for lib, rs in by_lib.items()
         }
-        ratio = (
-            f"{statistics.median(times['SB3']) / statistics.median(times['policylab']):.1f}x"
-            if times["policylab"] and times["SB3"]
-            else "-"
-        )
         for lib, rs in by_lib.items():
             if not rs:
                 continue
-            settings = "policylab defaults" if lib == "policylab" else "zoo"
+            ratio = (
+                f"{statistics.median(times['SB3']) / statistics.median(times[lib]):.1f}x"
+                if times[lib] and times["SB3"] and lib != "SB3"
+                else ("" if lib == "SB3" else "-")
+            )
+            settings = {"policylab": "its defaults", ZOO_LABEL: "the zoo's, as SB3", "SB3": "zoo"}[
+                lib
+            ]
             solved = [r for r in rs if r.solve_steps is not None]
             steps = [float(r.solve_steps) for r in solved if r.solve_steps is not None]
             rows.append(
-                f"| {algo.upper()} | {env_id} | {lib} ({settings}) | {rs[0].budget:,} | "
+                f"| {algo.upper()} | {env_id} | {lib.split(',')[0]} ({settings}) | "
+                f"{rs[0].budget:,} | "
                 f"{len(solved)}/{len(rs)} | {_fmt(times[lib])} | {_fmt(steps, 0)} | "
-                f"{ratio if lib == 'policylab' else ''} |"
+                f"{ratio} |"
             )
     return "\n".join(rows)
 
@@ -278,7 +272,10 @@ def _make_policylab(algo: str, env_id: str, seed: int) -> Any:
     return pl.deep.ALGORITHMS[algo](env_id, seed=seed, **identical_settings(algo, env_id))
 
 
-def _make_sb3(algo: str, env_id: str, seed: int) -> Any:
+def _make_sb3(algo: str, env_id: str, seed: int, anneal_clip: bool = False) -> Any:
+    """SB3's agent with the zoo's settings; ``anneal_clip`` also anneals PPO's clip range
+    where the zoo anneals the learning rate (the zoo's recommended ``lin_`` schedules;
+    policylab anneals only the learning rate, so the per-step comparison leaves it)."""
     from stable_baselines3 import DQN, PPO
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import VecNormalize
@@ -296,6 +293,8 @@ def _make_sb3(algo: str, env_id: str, seed: int) -> Any:
     if algo == "ppo":
         lr = kwargs.pop("learning_rate", 3e-4)
         kwargs["learning_rate"] = _linear(lr) if anneal else lr
+        if anneal and anneal_clip:
+            kwargs["clip_range"] = _linear(kwargs.get("clip_range", 0.2))
         return PPO("MlpPolicy", venv, seed=seed, device="cpu", **kwargs)
     if hidden is not None:
         kwargs["policy_kwargs"] = {"net_arch": list(hidden)}
@@ -434,6 +433,11 @@ def main() -> None:
         action="store_true",
         help="env steps per second at identical settings, with a profile of each library",
     )
+    ap.add_argument(
+        "--with-zoo-policylab",
+        action="store_true",
+        help="time to solve: also run policylab with the zoo's settings exactly",
+    )
     ap.add_argument("--rounds", type=int, default=3, help="timed runs per library (--per-step)")
     ap.add_argument(
         "--full-budget",
@@ -473,7 +477,9 @@ def main() -> None:
         section = args.section or "Deep RL: time to first solve"
         command = (
             f"python benchmarks/bench_deep.py --seeds {args.seeds} --envs {args.envs} "
-            f"--algos {args.algos}" + (" --full-budget" if args.full_budget else "")
+            f"--algos {args.algos}"
+            + (" --full-budget" if args.full_budget else "")
+            + (" --with-zoo-policylab" if args.with_zoo_policylab else "")
         )
         results: list[Result] = []
         for env_id in envs:
@@ -481,8 +487,14 @@ def main() -> None:
                 if not zoo_settings(algo, env_id):
                     continue
                 for seed in range(args.seeds):
-                    for runner in (run_policylab, run_sb3):
-                        r = runner(algo, env_id, seed, args.full_budget)
+                    variants = [True, False] if args.with_zoo_policylab else [True]
+                    runs: list[Callable[[], Result]] = [
+                        partial(run_policylab, algo, env_id, seed, args.full_budget, tuned)
+                        for tuned in variants
+                    ]
+                    runs.append(partial(run_sb3, algo, env_id, seed, args.full_budget))
+                    for runner in runs:
+                        r = runner()
                         results.append(r)
                         print(
                             f"{r.library:10s} {algo} {env_id} seed {seed}: "

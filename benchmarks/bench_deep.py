@@ -471,7 +471,10 @@ def main() -> None:
             "which the other jobs on the machine disturb less than the wall clock. "
             "The split (env step, policy forward on the acting path, update, rest) is the "
             "share of one further cProfile'd run of each (cProfile adds a per-call cost, "
-            "so it overstates Python-heavy parts)."
+            "so it overstates Python-heavy parts). The env step is each library's own: "
+            "policylab steps CartPole-v1 with Gymnasium's NumPy-vectorised CartPole, "
+            "SB3 with a DummyVecEnv of single envs; Acrobot-v1 is a loop over single envs "
+            "in both."
         )  # fmt: skip
     else:
         section = args.section or "Deep RL: time to first solve"
@@ -511,7 +514,15 @@ def main() -> None:
             f"protocol for both: evaluations ({evals} steps) of 100 greedy episodes, not "
             "counted in the times; training stops at the first evaluation that reaches "
             "the threshold (CartPole-v1 475, Acrobot-v1 -100, LunarLander-v3 200). Both "
-            "libraries with torch.set_num_threads(1), seed by seed one after the other."
+            "libraries with torch.set_num_threads(1), seed by seed one after the other. "
+            "policylab checks for an evaluation after each iteration, so its step counts "
+            "are those of the first iteration past each multiple of the interval."
+            + (
+                " The row 'the zoo's, as SB3' is policylab with the zoo's settings "
+                "exactly, as in the per-step table."
+                if args.with_zoo_policylab
+                else ""
+            )
         )
     load1 = os.getloadavg()
     notes += (

@@ -16,8 +16,12 @@ thread:
   whose mean reaches the threshold (CartPole-v1 475, Acrobot-v1 -100, LunarLander-v3
   200). ``--full-budget`` trains both to their whole budgets instead.
 
+``--with-zoo-policylab`` adds policylab with the zoo's settings exactly to the
+time-to-solve runs.
+
 Usage: ``python benchmarks/bench_deep.py [--per-step] [--rounds 3] [--seeds 5]
-[--envs CartPole-v1,Acrobot-v1] [--algos ppo,dqn] [--full-budget]``.
+[--envs CartPole-v1,Acrobot-v1] [--algos ppo,dqn] [--with-zoo-policylab]
+[--full-budget] [--section NAME] [--no-write]``.
 """
 
 from __future__ import annotations

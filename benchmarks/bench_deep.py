@@ -536,6 +536,8 @@ def main() -> None:
         f"benchmark {time.perf_counter() - t0:.0f} s."
     )
     print(body + "\n\n" + notes)
+    if args.section:
+        command += f' --section "{args.section}"'
     if not args.no_write:
         from _report import write_section
 

@@ -1,24 +1,27 @@
-"""Deep RL: policylab's PPO and DQN against Stable-Baselines3 with rl-baselines3-zoo settings.
+"""Deep RL: policylab's PPO and DQN against Stable-Baselines3, measured like with like.
 
-For every (algorithm, environment) and seed, both libraries train on the same machine in
-the same run, one after the other (seed by seed, so both see the same load), each with
-torch limited to one thread. Every ``eval_every`` steps the current policy is evaluated
-greedily on 100 episodes (evaluation time is not counted as training time); the
-environment counts as solved once that mean reaches the threshold (CartPole-v1 475,
-Acrobot-v1 -100, LunarLander-v3 200).
+Two measurements, each with both libraries in the same run and torch limited to one
+thread:
 
-- policylab trains with ``policylab train``'s defaults (``pl.deep.default_config``) and
-  stops at the first solved evaluation: its time is the wall-clock time to solve.
-- Stable-Baselines3 trains its whole zoo budget (as the issue's baseline asks: "trains at
-  its budget"); its table row gives that full time, whether the last evaluation solved
-  the task, and also the time at which an evaluation first reached the threshold.
+- ``--per-step``: env steps per second at identical settings (the rl-baselines3-zoo
+  hyperparameters exactly, for both libraries: no policylab ``TUNED`` changes, the same
+  activation, envs, rollout length, gradient steps, vanilla DQN), the same number of env
+  steps, the two libraries' runs interleaved round by round so both see the same load;
+  then one cProfile'd run of each, splitting the time between the env step, the policy's
+  forward pass on the acting path, the update, and the rest.
+- time to the first solved evaluation (the default), each library with its recommended
+  settings (policylab: ``policylab train``'s defaults, the zoo plus ``TUNED``; SB3: the
+  zoo's). Both follow one protocol: every ``eval_every`` steps the greedy policy plays
+  100 episodes (not counted in the time) and training stops at the first evaluation
+  whose mean reaches the threshold (CartPole-v1 475, Acrobot-v1 -100, LunarLander-v3
+  200). ``--full-budget`` trains both to their whole budgets instead.
 
-With ``--full-budget`` policylab also trains its whole budget (the time to solve is then
-the training time until its first solved evaluation, as for SB3), so that the final
-returns of both libraries at the same budget can be compared.
+``--with-zoo-policylab`` adds policylab with the zoo's settings exactly to the
+time-to-solve runs.
 
-Usage: ``python benchmarks/bench_deep.py [--seeds 5] [--envs CartPole-v1,Acrobot-v1]
-[--algos ppo,dqn] [--full-budget]``.
+Usage: ``python benchmarks/bench_deep.py [--per-step] [--rounds 3] [--seeds 5]
+[--envs CartPole-v1,Acrobot-v1] [--algos ppo,dqn] [--with-zoo-policylab]
+[--full-budget] [--section NAME] [--no-write]``.
 """
 
 from __future__ import annotations
@@ -27,7 +30,9 @@ import argparse
 import os
 import statistics
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -76,10 +81,18 @@ def _evaluate(act: Any, env_id: str, seed: int) -> float:
     return float(np.mean(run_episodes(act, env_id, 100, seed=10_000 + seed, n_envs=100)))
 
 
-def run_policylab(algo: str, env_id: str, seed: int, full_budget: bool = False) -> Result:
-    fields, budget = pl.deep.default_config(algo, env_id)
+ZOO_LABEL = "policylab, zoo settings"
+
+
+def run_policylab(
+    algo: str, env_id: str, seed: int, full_budget: bool = False, tuned: bool = True
+) -> Result:
+    if tuned:
+        fields, budget = pl.deep.default_config(algo, env_id)
+    else:
+        fields, budget = identical_settings(algo, env_id), zoo_settings(algo, env_id)["steps"]
     assert budget is not None
-    res = Result("policylab", algo, env_id, seed, budget)
+    res = Result("policylab" if tuned else ZOO_LABEL, algo, env_id, seed, budget)
     agent = pl.deep.ALGORITHMS[algo](env_id, seed=seed, **fields)
     every, thr = EVAL_EVERY[env_id], THRESHOLD[env_id]
     nxt = [every]
@@ -114,32 +127,13 @@ def _linear(v: float) -> Any:
 
 
 def run_sb3(algo: str, env_id: str, seed: int, full_budget: bool = True) -> Result:
-    from stable_baselines3 import DQN, PPO
     from stable_baselines3.common.callbacks import BaseCallback
-    from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import VecNormalize
 
-    z = zoo_settings(algo, env_id)
-    budget = int(z.pop("steps"))
-    res = Result("SB3 (zoo)", algo, env_id, seed, budget)
-    normalize = z.pop("normalize", False)
-    n_envs = int(z.pop("n_envs", 1))
-    hidden = z.pop("hidden", None)
-    anneal = z.pop("anneal_lr", False)
-    venv = make_vec_env(env_id, n_envs=n_envs, seed=seed)
-    if normalize:
-        venv = VecNormalize(venv, gamma=z.get("gamma", 0.99))
-    kwargs: dict[str, Any] = dict(z)
-    if algo == "ppo":
-        lr = kwargs.pop("learning_rate", 3e-4)
-        kwargs["learning_rate"] = _linear(lr) if anneal else lr
-        if anneal:
-            kwargs["clip_range"] = _linear(kwargs.get("clip_range", 0.2))
-        model: Any = PPO("MlpPolicy", venv, seed=seed, device="cpu", **kwargs)
-    else:
-        if hidden is not None:
-            kwargs["policy_kwargs"] = {"net_arch": list(hidden)}
-        model = DQN("MlpPolicy", venv, seed=seed, device="cpu", **kwargs)
+    budget = int(zoo_settings(algo, env_id)["steps"])
+    res = Result("SB3", algo, env_id, seed, budget)
+    model = _make_sb3(algo, env_id, seed, anneal_clip=True)
+    venv = model.get_env()
+    normalize = bool(zoo_settings(algo, env_id).get("normalize", False))
     every, thr = EVAL_EVERY[env_id], THRESHOLD[env_id]
     clock = _Clock()
 
@@ -163,54 +157,271 @@ def run_sb3(algo: str, env_id: str, seed: int, full_budget: bool = True) -> Resu
                 res.evals.append((self.num_timesteps, mean))
                 if mean >= thr and res.solve_steps is None:
                     res.solve_seconds, res.solve_steps = t, self.num_timesteps
+                    return full_budget
             return True
 
     clock = _Clock()
     model.learn(budget, callback=Eval())
-    res.train_seconds, res.steps = clock.elapsed(), budget
-    res.final_mean = _evaluate(act, env_id, seed)
+    res.train_seconds, res.steps = clock.elapsed(), model.num_timesteps
+    res.final_mean = (
+        res.evals[-1][1] if res.solve_steps and not full_budget else _evaluate(act, env_id, seed)
+    )
     venv.close()
     return res
 
 
-def _fmt(xs: list[float]) -> str:
+def _fmt(xs: list[float], digits: int = 1) -> str:
     if not xs:
         return "-"
     if len(xs) == 1:
-        return f"{xs[0]:.1f}"
-    return f"{statistics.median(xs):.1f} ({min(xs):.1f}-{max(xs):.1f})"
+        return f"{xs[0]:,.{digits}f}"
+    return f"{statistics.median(xs):,.{digits}f} ({min(xs):,.{digits}f}-{max(xs):,.{digits}f})"
 
 
 def table(results: list[Result], full_budget: bool = False) -> str:
     rows = [
-        "| algorithm | env | library | budget (steps) | seeds solved "
-        "| time to solve, s: median (range) | training time at budget or to solve, s "
-        "| steps to solve (median) | final 100-episode mean |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| algorithm | env | library (settings) | budget (steps) | seeds solved "
+        "| time to first solve, s: median (range) | steps to first solve: median (range) "
+        "| SB3 / policylab, median time to solve |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     keys = sorted({(r.algo, r.env_id) for r in results}, key=lambda k: (k[1], k[0]))
     for algo, env_id in keys:
-        for lib in ("policylab", "SB3 (zoo)"):
-            rs = [r for r in results if (r.algo, r.env_id, r.library) == (algo, env_id, lib)]
+        by_lib = {
+            lib: [r for r in results if (r.algo, r.env_id, r.library) == (algo, env_id, lib)]
+            for lib in ("policylab", ZOO_LABEL, "SB3")
+        }
+        times = {
+            lib: [r.solve_seconds for r in rs if r.solve_seconds is not None]
+            for lib, rs in by_lib.items()
+        }
+        for lib, rs in by_lib.items():
             if not rs:
                 continue
-            thr = THRESHOLD[env_id]
-            if lib == "policylab" and not full_budget:
-                solved = [r for r in rs if r.solve_steps is not None]
-                n_solved = f"{len(solved)}/{len(rs)}"
-            else:
-                solved = [r for r in rs if r.solve_steps is not None]
-                at_end = sum(r.final_mean >= thr for r in rs)
-                n_solved = (
-                    f"{at_end}/{len(rs)} at budget ({len(solved)}/{len(rs)} at some evaluation)"
-                )
-            rows.append(
-                f"| {algo.upper()} | {env_id} | {lib} | {rs[0].budget:,} | {n_solved} | "
-                f"{_fmt([r.solve_seconds for r in solved if r.solve_seconds is not None])} | "
-                f"{_fmt([r.train_seconds for r in rs])} | "
-                f"{statistics.median([r.solve_steps for r in solved]) if solved else '-'} | "
-                f"{_fmt([r.final_mean for r in rs])} |"
+            ratio = (
+                f"{statistics.median(times['SB3']) / statistics.median(times[lib]):.1f}x"
+                if times[lib] and times["SB3"] and lib != "SB3"
+                else ("" if lib == "SB3" else "-")
             )
+            settings = {"policylab": "its defaults", ZOO_LABEL: "the zoo's, as SB3", "SB3": "zoo"}[
+                lib
+            ]
+            solved = [r for r in rs if r.solve_steps is not None]
+            steps = [float(r.solve_steps) for r in solved if r.solve_steps is not None]
+            rows.append(
+                f"| {algo.upper()} | {env_id} | {lib.split(',')[0]} ({settings}) | "
+                f"{rs[0].budget:,} | "
+                f"{len(solved)}/{len(rs)} | {_fmt(times[lib])} | {_fmt(steps, 0)} | "
+                f"{ratio} |"
+            )
+    return "\n".join(rows)
+
+
+# ---------------------------------------------------------------------------
+# Per environment step at identical settings
+# ---------------------------------------------------------------------------
+
+PER_STEP_STEPS = {
+    ("ppo", "CartPole-v1"): 20_480,
+    ("dqn", "CartPole-v1"): 10_240,
+    ("ppo", "Acrobot-v1"): 32_768,
+    ("dqn", "Acrobot-v1"): 4_000,
+    ("ppo", "LunarLander-v3"): 65_536,
+    ("dqn", "LunarLander-v3"): 8_000,
+}
+
+# Where each library spends a step, by the functions a profile charges it to:
+# (file path fragment, function name). "act" is the env step plus the policy's forward
+# pass on the acting path; "update" is the gradient-step phase; the rest is buffers,
+# GAE, bookkeeping and logging.
+_PHASES: dict[tuple[str, str], dict[str, list[tuple[str, str]]]] = {
+    ("policylab", "ppo"): {
+        "env": [],  # the outermost step of the agent's vector env, found at run time
+        "forward": [("policylab/deep/ppo/networks.py", "sample")],
+        "update": [("policylab/deep/ppo/agent.py", "_update")],
+    },
+    ("policylab", "dqn"): {
+        "env": [],
+        "forward": [("policylab/deep/dqn/agent.py", "_act")],
+        "update": [("policylab/deep/dqn/agent.py", "_update")],
+    },
+    ("SB3", "ppo"): {
+        "env": [("vec_env/dummy_vec_env.py", "step_wait")],
+        "forward": [("stable_baselines3/common/policies.py", "forward")],
+        "update": [("stable_baselines3/ppo/ppo.py", "train")],
+    },
+    ("SB3", "dqn"): {
+        "env": [("vec_env/dummy_vec_env.py", "step_wait")],
+        "forward": [("stable_baselines3/common/policies.py", "predict")],
+        "update": [("stable_baselines3/dqn/dqn.py", "train")],
+    },
+}
+
+
+def identical_settings(algo: str, env_id: str) -> dict[str, Any]:
+    """policylab config fields equal to what SB3 runs with the zoo's settings.
+
+    The zoo's settings without policylab's ``TUNED`` changes, plus SB3's own defaults
+    where policylab's differ: vanilla (not Double) DQN, and the activations of SB3's
+    MlpPolicy (tanh for PPO, ReLU for DQN, which are also policylab's defaults).
+    """
+    fields, _ = pl.deep.default_config(algo, env_id, tuned=False)
+    fields["activation"] = "tanh" if algo == "ppo" else "relu"
+    if algo == "dqn":
+        fields["double_q"] = False
+    return fields
+
+
+def _make_policylab(algo: str, env_id: str, seed: int) -> Any:
+    return pl.deep.ALGORITHMS[algo](env_id, seed=seed, **identical_settings(algo, env_id))
+
+
+def _make_sb3(algo: str, env_id: str, seed: int, anneal_clip: bool = False) -> Any:
+    """SB3's agent with the zoo's settings; ``anneal_clip`` also anneals PPO's clip range
+    where the zoo anneals the learning rate (the zoo's recommended ``lin_`` schedules;
+    policylab anneals only the learning rate, so the per-step comparison leaves it)."""
+    from stable_baselines3 import DQN, PPO
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    z = zoo_settings(algo, env_id)
+    z.pop("steps")
+    normalize = z.pop("normalize", False)
+    n_envs = int(z.pop("n_envs", 1))
+    hidden = z.pop("hidden", None)
+    anneal = z.pop("anneal_lr", False)
+    venv = make_vec_env(env_id, n_envs=n_envs, seed=seed)
+    if normalize:
+        venv = VecNormalize(venv, gamma=z.get("gamma", 0.99))
+    kwargs: dict[str, Any] = dict(z)
+    if algo == "ppo":
+        lr = kwargs.pop("learning_rate", 3e-4)
+        kwargs["learning_rate"] = _linear(lr) if anneal else lr
+        if anneal and anneal_clip:
+            kwargs["clip_range"] = _linear(kwargs.get("clip_range", 0.2))
+        return PPO("MlpPolicy", venv, seed=seed, device="cpu", **kwargs)
+    if hidden is not None:
+        kwargs["policy_kwargs"] = {"net_arch": list(hidden)}
+    return DQN("MlpPolicy", venv, seed=seed, device="cpu", **kwargs)
+
+
+@dataclass
+class StepResult:
+    library: str
+    algo: str
+    env_id: str
+    steps_per_second: list[float] = field(default_factory=list)
+    steps_per_cpu_second: list[float] = field(default_factory=list)
+    phases: dict[str, float] = field(default_factory=dict)  # fractions of the profiled time
+
+
+def _timed_learn(
+    library: str, algo: str, env_id: str, steps: int, seed: int
+) -> tuple[float, float]:
+    """Env steps per wall-clock second and per CPU second of one unprofiled run."""
+    model = (_make_policylab if library == "policylab" else _make_sb3)(algo, env_id, seed)
+    t0, c0 = time.perf_counter(), time.process_time()
+    model.learn(steps)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return model.num_timesteps / wall, model.num_timesteps / cpu
+
+
+def _profiled_phases(
+    library: str, algo: str, env_id: str, steps: int, seed: int
+) -> dict[str, float]:
+    """Fractions of a cProfile'd training run spent acting, updating, and on the rest."""
+    import cProfile
+    import pstats
+
+    prof = cProfile.Profile()
+    spec = {k: list(v) for k, v in _PHASES[(library, algo)].items()}
+    if library == "policylab":
+        agent = _make_policylab(algo, env_id, seed)
+        step = type(agent.envs).step
+        spec["env"].append((step.__code__.co_filename, step.__code__.co_name))
+        prof.enable()
+        agent.learn(steps)
+    else:
+        model = _make_sb3(algo, env_id, seed)
+        prof.enable()
+        model.learn(steps)
+    prof.disable()
+    stats: Any = pstats.Stats(prof).stats  # {(file, line, name): (cc, nc, tt, ct, callers)}
+    total = sum(v[2] for v in stats.values())
+
+    def cum(patterns: list[tuple[str, str]]) -> float:
+        out = 0.0
+        for (file, _, name), (_, _, _, ct, callers) in stats.items():
+            if not any(frag in file.replace("\\", "/") and name == fn for frag, fn in patterns):
+                continue
+            # count only calls from outside the matched set (no double counting of
+            # wrappers that call each other, e.g. a vector env's step calling an env's)
+            inner = sum(
+                c[3]
+                for (cf, _, cn), c in callers.items()
+                if any(frag in cf.replace("\\", "/") and cn == fn for frag, fn in patterns)
+            )
+            out += ct - inner
+        return out
+
+    env_t, fwd_t, upd_t = cum(spec["env"]), cum(spec["forward"]), cum(spec["update"])
+    return {
+        "env step": env_t / total,
+        "policy forward": fwd_t / total,
+        "update": upd_t / total,
+        "rest": max(0.0, 1.0 - (env_t + fwd_t + upd_t) / total),
+    }
+
+
+def per_step(envs: list[str], algos: list[str], rounds: int) -> list[StepResult]:
+    """Both libraries at identical settings, interleaved run by run, one torch thread."""
+    results: list[StepResult] = []
+    for env_id in envs:
+        for algo in algos:
+            key = (algo, env_id)
+            if key not in PER_STEP_STEPS or not zoo_settings(algo, env_id):
+                continue
+            steps = PER_STEP_STEPS[key]
+            pair = [StepResult(lib, algo, env_id) for lib in ("policylab", "SB3")]
+            for r in range(rounds):
+                for res in pair if r % 2 == 0 else pair[::-1]:
+                    sps, cps = _timed_learn(res.library, algo, env_id, steps, seed=r)
+                    res.steps_per_second.append(sps)
+                    res.steps_per_cpu_second.append(cps)
+                    print(f"{res.library:9s} {algo} {env_id} round {r}: {sps:,.0f} steps/s, "
+                          f"{cps:,.0f} steps/CPU-s", flush=True)  # fmt: skip
+            for res in pair:
+                res.phases = _profiled_phases(res.library, algo, env_id, steps, seed=0)
+                print(f"{res.library:9s} {algo} {env_id} profile: {res.phases}", flush=True)
+            results.extend(pair)
+    return results
+
+
+def per_step_table(results: list[StepResult]) -> str:
+    rows = [
+        "| algorithm | env | library | env steps/s: median (range) | policylab / SB3 "
+        "| env steps per CPU-second | policylab / SB3 (CPU) "
+        "| env step | policy forward | update | rest |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for i in range(0, len(results), 2):
+        ours, sb3 = results[i], results[i + 1]
+        med = statistics.median
+        ratio = med(ours.steps_per_second) / med(sb3.steps_per_second)
+        cpu_ratio = med(ours.steps_per_cpu_second) / med(sb3.steps_per_cpu_second)
+        for res in (ours, sb3):
+            sps, cps = res.steps_per_second, res.steps_per_cpu_second
+            p = res.phases
+            rows.append(
+                f"| {res.algo.upper()} | {res.env_id} | {res.library} | "
+                f"{med(sps):,.0f} ({min(sps):,.0f}-{max(sps):,.0f}) | "
+                f"{f'{ratio:.2f}x' if res is ours else ''} | "
+                f"{med(cps):,.0f} ({min(cps):,.0f}-{max(cps):,.0f}) | "
+                f"{f'{cpu_ratio:.2f}x' if res is ours else ''} | "
+                + " | ".join(f"{100 * p[k]:.0f}%" for k in ("env step", "policy forward",
+                                                            "update", "rest"))
+                + " |"
+            )  # fmt: skip
     return "\n".join(rows)
 
 
@@ -220,83 +431,117 @@ def main() -> None:
     ap.add_argument("--envs", default="CartPole-v1")
     ap.add_argument("--algos", default="ppo,dqn")
     ap.add_argument("--no-write", action="store_true")
-    ap.add_argument("--section", default="Deep RL")
+    ap.add_argument("--section", default=None)
+    ap.add_argument(
+        "--per-step",
+        action="store_true",
+        help="env steps per second at identical settings, with a profile of each library",
+    )
+    ap.add_argument(
+        "--with-zoo-policylab",
+        action="store_true",
+        help="time to solve: also run policylab with the zoo's settings exactly",
+    )
+    ap.add_argument("--rounds", type=int, default=3, help="timed runs per library (--per-step)")
     ap.add_argument(
         "--full-budget",
         action="store_true",
-        help="policylab trains its whole budget too, instead of stopping once solved",
+        help="train both libraries to their whole budgets instead of stopping once solved",
     )
     args = ap.parse_args()
     torch.set_num_threads(1)
-    results: list[Result] = []
+    envs, algos = args.envs.split(","), args.algos.split(",")
     load0 = os.getloadavg()
     t0 = time.perf_counter()
-    for env_id in args.envs.split(","):
-        for algo in args.algos.split(","):
-            if not zoo_settings(algo, env_id):
-                continue
-            for seed in range(args.seeds):
-                for runner in (run_policylab, run_sb3):
-                    r = runner(algo, env_id, seed, args.full_budget)
-                    results.append(r)
-                    print(
-                        f"{r.library:10s} {algo} {env_id} seed {seed}: "
-                        f"train {r.train_seconds:.1f}s "
-                        f"solved at {r.solve_steps} ({r.solve_seconds}) final {r.final_mean:.1f} "
-                        f"evals {r.evals}",
-                        flush=True,
-                    )
+    if args.per_step:
+        section = args.section or "Deep RL: per step at identical settings"
+        command = (
+            f"python benchmarks/bench_deep.py --per-step --rounds {args.rounds} "
+            f"--envs {args.envs} --algos {args.algos}"
+        )
+        body = per_step_table(per_step(envs, algos, args.rounds))
+        budgets = ", ".join(
+            f"{a.upper()} {e} {n:,}"
+            for (a, e), n in PER_STEP_STEPS.items()
+            if a in algos and e in envs
+        )
+        notes = (
+            "Both libraries with the rl-baselines3-zoo hyperparameters exactly (policylab "
+            "without its `TUNED` changes: `benchmarks/bench_deep.py:identical_settings`), "
+            "torch.set_num_threads(1), the same number of env steps "
+            f"({budgets}), "
+            f"{args.rounds} timed runs each, the two libraries alternating run by run. "
+            "Steps per CPU-second divide by the process's CPU time (`time.process_time`), "
+            "which the other jobs on the machine disturb less than the wall clock. "
+            "The split (env step, policy forward on the acting path, update, rest) is the "
+            "share of one further cProfile'd run of each (cProfile adds a per-call cost, "
+            "so it overstates Python-heavy parts). The env step is each library's own: "
+            "policylab steps CartPole-v1 with Gymnasium's NumPy-vectorised CartPole, "
+            "SB3 with a DummyVecEnv of single envs; Acrobot-v1 is a loop over single envs "
+            "in both."
+        )  # fmt: skip
+    else:
+        section = args.section or "Deep RL: time to first solve"
+        command = (
+            f"python benchmarks/bench_deep.py --seeds {args.seeds} --envs {args.envs} "
+            f"--algos {args.algos}"
+            + (" --full-budget" if args.full_budget else "")
+            + (" --with-zoo-policylab" if args.with_zoo_policylab else "")
+        )
+        results: list[Result] = []
+        for env_id in envs:
+            for algo in algos:
+                if not zoo_settings(algo, env_id):
+                    continue
+                for seed in range(args.seeds):
+                    variants = [True, False] if args.with_zoo_policylab else [True]
+                    runs: list[Callable[[], Result]] = [
+                        partial(run_policylab, algo, env_id, seed, args.full_budget, tuned)
+                        for tuned in variants
+                    ]
+                    runs.append(partial(run_sb3, algo, env_id, seed, args.full_budget))
+                    for runner in runs:
+                        r = runner()
+                        results.append(r)
+                        print(
+                            f"{r.library:10s} {algo} {env_id} seed {seed}: "
+                            f"train {r.train_seconds:.1f}s solved at {r.solve_steps} "
+                            f"({r.solve_seconds}) final {r.final_mean:.1f} evals {r.evals}",
+                            flush=True,
+                        )
+        body = table(results, args.full_budget)
+        evals = ", ".join(f"{k} every {v:,}" for k, v in EVAL_EVERY.items())
+        notes = (
+            f"Seeds 0-{args.seeds - 1}, each library with its recommended settings "
+            "(policylab: `policylab train`'s defaults, `pl.deep.default_config`, the zoo "
+            "settings plus `policylab.deep.zoo.TUNED`; SB3: the zoo settings). One "
+            f"protocol for both: evaluations ({evals} steps) of 100 greedy episodes, not "
+            "counted in the times; training stops at the first evaluation that reaches "
+            "the threshold (CartPole-v1 475, Acrobot-v1 -100, LunarLander-v3 200). Both "
+            "libraries with torch.set_num_threads(1), seed by seed one after the other. "
+            "policylab checks for an evaluation after each iteration, so its step counts "
+            "are those of the first iteration past each multiple of the interval."
+            + (
+                " The row 'the zoo's, as SB3' is policylab with the zoo's settings "
+                "exactly, as in the per-step table."
+                if args.with_zoo_policylab
+                else ""
+            )
+        )
     load1 = os.getloadavg()
-    body = table(results, args.full_budget)
-    speedups = []
-    for algo, env_id in sorted({(r.algo, r.env_id) for r in results}):
-        mine = [r for r in results if (r.algo, r.env_id) == (algo, env_id)]
-        ours = [r for r in mine if r.library == "policylab"]
-        sb3 = [r for r in mine if r.library == "SB3 (zoo)"]
-        ours_solve = [r.solve_seconds for r in ours if r.solve_seconds]
-        sb3_solve = [r.solve_seconds for r in sb3 if r.solve_seconds]
-        sb3_budget = statistics.median([r.train_seconds for r in sb3]) if sb3 else None
-        name = f"{algo.upper()} {env_id}"
-        if ours_solve and sb3_budget and not args.full_budget:
-            o = statistics.median(ours_solve)
-            speedups.append(
-                f"- {name}: SB3's median training time at its budget / policylab's median "
-                f"time to solve = {sb3_budget:.1f} s / {o:.1f} s = {sb3_budget / o:.1f}x"
-            )
-        if ours and sb3_budget and args.full_budget:
-            o = statistics.median([r.train_seconds for r in ours])
-            speedups.append(
-                f"- {name}: training time at the same budget, SB3 / policylab = "
-                f"{sb3_budget:.1f} s / {o:.1f} s = {sb3_budget / o:.1f}x"
-            )
-        if ours_solve and sb3_solve:
-            o, b = statistics.median(ours_solve), statistics.median(sb3_solve)
-            speedups.append(
-                f"- {name}: time to the first solved evaluation, SB3 / policylab = "
-                f"{b:.1f} s / {o:.1f} s = {b / o:.1f}x"
-            )
-    evals = ", ".join(f"{k} every {v:,}" for k, v in EVAL_EVERY.items())
-    speedup_text = "\n".join(speedups)
-    notes = (
-        f"\n\n{speedup_text}\n\n"
-        f"Seeds 0-{args.seeds - 1}; evaluations ({evals} steps) on 100 greedy episodes, not "
-        "counted in the times. Both libraries run with torch.set_num_threads(1), one after "
-        "the other. Load average "
-        f"{load0[0]:.1f} at the start and {load1[0]:.1f} at the end on 2 cores; whole "
-        f"benchmark {time.perf_counter() - t0:.0f} s. policylab uses its `policylab train` "
-        "defaults (`pl.deep.default_config`: the zoo settings plus the changes in "
-        "`policylab.deep.zoo.TUNED`); SB3 uses the zoo settings as they are."
+    notes += (
+        f" The machine was shared with other developers' jobs: load average {load0[0]:.1f} "
+        f"at the start and {load1[0]:.1f} at the end on 2 cores, so the absolute figures "
+        "are from a loaded machine (the ratios compare runs under the same load); whole "
+        f"benchmark {time.perf_counter() - t0:.0f} s."
     )
-    print(body + notes)
+    print(body + "\n\n" + notes)
+    if args.section:
+        command += f' --section "{args.section}"'
     if not args.no_write:
         from _report import write_section
 
-        write_section(
-            args.section,
-            f"python benchmarks/bench_deep.py --seeds {args.seeds} --envs {args.envs} "
-            f"--algos {args.algos}" + (" --full-budget" if args.full_budget else ""),
-            body + notes,
-        )
+        write_section(section, command, body + "\n\n" + notes)
 
 
 if __name__ == "__main__":

@@ -111,3 +111,13 @@ def test_ppo_solves_cartpole() -> None:
 
     agent.learn(60_000, callback=check)
     assert solved, "PPO did not reach a mean return of 475 over 100 episodes in 60k steps"
+
+
+def test_default_config_untuned_is_the_zoo_exactly() -> None:
+    tuned, _ = pl.deep.default_config("ppo", "CartPole-v1")
+    zoo, steps = pl.deep.default_config("ppo", "CartPole-v1", tuned=False)
+    assert steps == 100_000
+    assert (zoo["n_envs"], zoo["n_steps"], zoo["batch_size"], zoo["n_epochs"]) == (8, 32, 256, 20)
+    assert "activation" not in zoo and tuned["activation"] == "relu"
+    dqn, _ = pl.deep.default_config("dqn", "Acrobot-v1", tuned=False)
+    assert dqn["gradient_steps"] == dqn["train_freq"] == 4  # the zoo's -1: one per env step

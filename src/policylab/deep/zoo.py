@@ -284,8 +284,16 @@ def has_tuned_settings(algo: str, env_id: str) -> bool:
     return key in ZOO.get(algo, {}) or key in TUNED.get(algo, {})
 
 
-def default_config(algo: str, env_id: str) -> tuple[dict[str, Any], int | None]:
+def default_config(
+    algo: str, env_id: str, *, tuned: bool = True
+) -> tuple[dict[str, Any], int | None]:
     """Policylab's default config fields and step budget for ``algo`` on ``env_id``.
+
+    Args:
+        algo: ``"ppo"`` or ``"dqn"``.
+        env_id: A Gymnasium id.
+        tuned: Apply policylab's changes in :data:`TUNED`; False gives the zoo's
+            settings exactly, as Stable-Baselines3 runs them.
 
     Returns:
         ``(fields, steps)``: config fields to pass to the agent, and the tuned number of
@@ -299,7 +307,7 @@ def default_config(algo: str, env_id: str) -> tuple[dict[str, Any], int | None]:
             f"unknown algorithm {algo!r}; known: {', '.join(sorted(ALGORITHMS))}"
         )
     key = _zoo_key(env_id)
-    s = {**zoo_settings(algo, env_id), **TUNED.get(algo, {}).get(key, {})}
+    s = {**zoo_settings(algo, env_id), **(TUNED.get(algo, {}).get(key, {}) if tuned else {})}
     steps = s.pop("steps", None)
     if s.pop("normalize", False):
         s["normalize_obs"] = True

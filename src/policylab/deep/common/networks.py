@@ -83,6 +83,16 @@ class MLP(nn.Sequential):
         super().__init__(*layers)
         self.out_dim = d
 
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """The layers in order, each called by its ``forward``.
+
+        Skipping ``nn.Module.__call__`` (hooks on the inner layers do not run; hooks on
+        the MLP itself do) saves about a tenth of a small PPO update's time.
+        """
+        for layer in self:
+            x = layer.forward(x)
+        return x
+
 
 class NatureCNN(nn.Module):
     """The convolutional torso of Mnih et al. (2015): 3 conv layers and a 512-unit layer.

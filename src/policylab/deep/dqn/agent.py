@@ -157,7 +157,7 @@ class DQN(Agent):
             if self.num_timesteps < cfg.learning_starts:
                 actions = self.rng.integers(0, self.n_actions, n)
             else:
-                with torch.no_grad():
+                with torch.inference_mode():
                     actions = self._act(torch.as_tensor(x), deterministic=False)
             next_obs, rew, term, trunc, valid = self._env_step(actions)
             done_steps = int(valid.sum())
@@ -169,19 +169,22 @@ class DQN(Agent):
             obs = next_obs
         metrics: dict[str, float] = {"epsilon": self.epsilon}
         if self.num_timesteps >= cfg.learning_starts and len(self.replay) >= cfg.batch_size:
-            losses, qs = [], []
-            for _ in range(cfg.gradient_steps):
-                loss, q_mean = self._train_step()
-                losses.append(loss)
-                qs.append(q_mean)
-            if losses:
-                metrics["loss"], metrics["q_mean"] = float(np.mean(losses)), float(np.mean(qs))
+            metrics.update(self._update())
         if self._since_target >= cfg.target_update_interval:
             self._since_target %= cfg.target_update_interval
             self._update_target()
         return metrics
 
-    def _train_step(self) -> tuple[float, float]:
+    def _update(self) -> dict[str, float]:
+        """``gradient_steps`` gradient steps; returns their mean loss and Q (none if 0 steps)."""
+        if self.config.gradient_steps == 0:
+            return {}
+        stats = [self._train_step() for _ in range(self.config.gradient_steps)]
+        loss, q_mean = torch.stack(stats).double().mean(0).tolist()  # read once, at the end
+        return {"loss": loss, "q_mean": q_mean}
+
+    def _train_step(self) -> torch.Tensor:
+        """One gradient step; returns its (loss, mean Q) as a detached tensor."""
         cfg = self.config
         if isinstance(self.replay, PrioritizedReplayBuffer):
             beta = cfg.per_beta + (1.0 - cfg.per_beta) * (1.0 - self.progress_remaining)
@@ -208,7 +211,7 @@ class DQN(Agent):
         self.n_updates += 1
         if isinstance(self.replay, PrioritizedReplayBuffer):
             self.replay.update_priorities(b.indices, td.detach().numpy())
-        return float(loss.item()), float(q.detach().mean().item())
+        return torch.stack([loss.detach(), q.detach().mean()])
 
     def _update_target(self) -> None:
         """theta_target <- tau theta + (1 - tau) theta_target (a copy when tau = 1)."""

@@ -126,7 +126,7 @@ class PPO(Agent):
         while not buf.full:
             valid = ~self._prev_done
             x = self._prepare(obs, update=True)
-            with torch.no_grad():
+            with torch.inference_mode():
                 a, logp, v = self.net.sample(torch.as_tensor(x), self.torch_gen)
             actions = a.numpy()
             buf.add(x, actions, logp.numpy(), v.numpy(), valid)
@@ -134,40 +134,41 @@ class PPO(Agent):
             if self.reward_scaler is not None:
                 rew = self.reward_scaler(rew, term | trunc)
             buf.add_outcome(rew, term, trunc)
-        with torch.no_grad():
+        with torch.inference_mode():
             last_v = self.net.value(torch.as_tensor(self._prepare(obs))).numpy()
         buf.compute_advantages(last_v, cfg.gamma, cfg.gae_lambda)
 
     def _iteration(self) -> dict[str, float]:
-        cfg, buf = self.config, self.buffer
+        cfg = self.config
         lr = cfg.learning_rate * (self.progress_remaining if cfg.anneal_lr else 1.0)
         for group in self.optimizer.param_groups:
             group["lr"] = lr
         self._collect()
+        out = self._update()
+        out["learning_rate"] = lr
+        return out
 
+    def _update(self) -> dict[str, float]:
+        """n_epochs passes of minibatch Adam steps on the rollout; returns mean metrics."""
+        cfg, buf = self.config, self.buffer
         obs = torch.as_tensor(buf.flat("obs"))
         actions = torch.as_tensor(buf.flat("actions"))
-        old_logp = torch.as_tensor(buf.flat("log_probs"))
-        old_v = torch.as_tensor(buf.flat("values"))
-        advantages = torch.as_tensor(buf.flat("advantages"))
-        returns = torch.as_tensor(buf.flat("returns"))
+        # the per-step scalars side by side, so a minibatch takes them in one gather
+        scalars = torch.as_tensor(
+            np.stack([buf.flat(k) for k in ("log_probs", "values", "advantages", "returns")], 1)
+        )
         vclip = cfg.clip_range_vf or None
-        stats: dict[str, list[float]] = {
-            "policy_loss": [],
-            "value_loss": [],
-            "entropy": [],
-            "approx_kl": [],
-            "clip_fraction": [],
-        }
+        stats: list[torch.Tensor] = []  # one row per minibatch, read once at the end
         for _ in range(cfg.n_epochs):
             for mb in buf.minibatches(cfg.batch_size, self.rng):
                 i = torch.from_numpy(mb)
+                old_logp, old_v, advantages, returns = scalars[i].unbind(1)
                 logp, entropy, v = self.net.evaluate_actions(obs[i], actions[i])
-                log_ratio = logp - old_logp[i]
+                log_ratio = logp - old_logp
                 ratio = log_ratio.exp()
-                adv = normalized(advantages[i]) if cfg.normalize_advantage else advantages[i]
+                adv = normalized(advantages) if cfg.normalize_advantage else advantages
                 pg_loss = clipped_surrogate_loss(ratio, adv, cfg.clip_range)
-                v_loss = value_loss(v, old_v[i], returns[i], vclip)
+                v_loss = value_loss(v, old_v, returns, vclip)
                 ent = entropy.mean()
                 loss = pg_loss + cfg.vf_coef * v_loss - cfg.ent_coef * ent
                 self.optimizer.zero_grad(set_to_none=True)
@@ -176,19 +177,14 @@ class PPO(Agent):
                 self.optimizer.step()
                 self.n_updates += 1
                 with torch.no_grad():
-                    approx_kl = ((ratio - 1) - log_ratio).mean().item()
-                    stats["clip_fraction"].append(
-                        ((ratio - 1).abs() > cfg.clip_range).float().mean().item()
-                    )
-                stats["policy_loss"].append(pg_loss.item())
-                stats["value_loss"].append(v_loss.item())
-                stats["entropy"].append(ent.item())
-                stats["approx_kl"].append(approx_kl)
-            if cfg.target_kl and stats["approx_kl"][-1] > cfg.target_kl:
+                    approx_kl = ((ratio - 1) - log_ratio).mean()
+                    clip_fraction = ((ratio - 1).abs() > cfg.clip_range).float().mean()
+                    stats.append(torch.stack([pg_loss, v_loss, ent, approx_kl, clip_fraction]))
+            if cfg.target_kl and float(stats[-1][3]) > cfg.target_kl:
                 break
-        out = {k: float(np.mean(v)) for k, v in stats.items()}
-        out["learning_rate"] = lr
-        return out
+        means = torch.stack(stats).double().mean(0).tolist()
+        names = ("policy_loss", "value_loss", "entropy", "approx_kl", "clip_fraction")
+        return dict(zip(names, means, strict=True))
 
     def _state_tensors(self, training_state: bool) -> dict[str, Any]:
         state: dict[str, Any] = {"net": self.net.state_dict()}

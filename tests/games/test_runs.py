@@ -200,7 +200,7 @@ def _alive(pid: int) -> bool:
 
 def _start_alphazero(run: Path) -> subprocess.Popen[str]:
     sets = dict(
-        iterations=1000, games_per_iteration=400, simulations=50, workers=2, channels=4, blocks=0
+        iterations=1000, games_per_iteration=4000, simulations=50, workers=2, channels=4, blocks=0
     )
     argv = [sys.executable, "-m", "policylab", "train", "alphazero", "tic-tac-toe", "--out",
             str(run), "--no-progress"]  # fmt: skip
@@ -209,9 +209,17 @@ def _start_alphazero(run: Path) -> subprocess.Popen[str]:
     return subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def _wait_for_workers(proc: subprocess.Popen[str], run: Path) -> list[int]:
-    # both workers started, and the first checkpoint (iteration 0) written
-    _wait_for(lambda: (run / "checkpoint.pt").exists() and len(_workers(proc.pid)) >= 2, proc)
+def _playing(pid: int) -> bool:
+    """Whether a worker has loaded torch (it is playing its share of the self-play games)."""
+    try:
+        return b"libtorch" in Path(f"/proc/{pid}/maps").read_bytes()
+    except OSError:
+        return False
+
+
+def _wait_for_workers(proc: subprocess.Popen[str]) -> list[int]:
+    # both workers busy with games that would take them minutes to finish
+    _wait_for(lambda: sum(_playing(w) for w in _workers(proc.pid)) >= 2, proc)
     return _workers(proc.pid)
 
 
@@ -220,17 +228,21 @@ def _wait_for_workers(proc: subprocess.Popen[str], run: Path) -> list[int]:
 def test_alphazero_leaves_no_workers_behind(tmp_path: Path, how: signal.Signals) -> None:
     run = tmp_path / "az"
     proc = _start_alphazero(run)
+    workers: list[int] = []
     try:
-        workers = _wait_for_workers(proc, run)
+        workers = _wait_for_workers(proc)
         proc.send_signal(how)
         _, err = proc.communicate(timeout=60)
         if how == signal.SIGTERM:
             assert proc.returncode == 143, err
             assert re.search(r"interrupted at iteration \d+; continue with --resume", err), err
         t0 = time.monotonic()
-        while any(_alive(w) for w in workers) and time.monotonic() - t0 < 20:
+        while any(_alive(w) for w in workers) and time.monotonic() - t0 < 10:
             time.sleep(0.1)
         assert not [w for w in workers if _alive(w)], "self-play workers outlived the run"
     finally:
         if proc.poll() is None:
             proc.kill()
+        for w in workers:  # whatever the test found, leave no process behind
+            if _alive(w):
+                os.kill(w, signal.SIGKILL)

@@ -18,7 +18,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from policylab.cli.main import main
 from policylab.exceptions import CheckpointError, RunFolderError, TrainingInterrupted
 from policylab.games import TIC_TAC_TOE
 from policylab.games.learned import load_player, train_selfplay_td
@@ -27,17 +26,12 @@ from policylab.games.selfplay_td import SelfPlayTDConfig, TDPlayer
 
 pytest.importorskip("torch")
 
+# the helpers of the deep run-folder tests: run the CLI in-process, wait on a live run
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "deep"))
+from cli_helpers import run_cli as _cli
+from test_run_folder import _wait_for
+
 TD_ARGS = ["train", "selfplay-td", "tic-tac-toe", "--no-progress"]
-
-
-def _cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    try:
-        main(argv)
-        code = 0
-    except SystemExit as e:
-        code = int(e.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_a_second_holder_and_the_new_or_resume_rule(tmp_path: Path) -> None:
@@ -130,18 +124,6 @@ def test_alphazero_resume_cuts_the_log_back_to_the_checkpoint(tmp_path: Path) ->
 
 
 # ------------------------------------------------------------------ real processes
-
-
-def _wait_for(cond: object, proc: subprocess.Popen[str], timeout: float = 120.0) -> None:
-    t0 = time.monotonic()
-    while not cond():  # type: ignore[operator]
-        if proc.poll() is not None:
-            out, err = proc.communicate()
-            pytest.fail(f"training ended early ({proc.returncode}): {out}\n{err}")
-        if time.monotonic() - t0 > timeout:
-            proc.kill()
-            pytest.fail("training did not reach the expected point in time")
-        time.sleep(0.05)
 
 
 def _episodes_done(run: Path) -> int:

@@ -182,7 +182,7 @@ def _alive(pid: int) -> bool:
 
 def _start_alphazero(run: Path) -> subprocess.Popen[str]:
     sets = dict(
-        iterations=1000, games_per_iteration=4000, simulations=50, workers=2, channels=4, blocks=0
+        iterations=1000, games_per_iteration=4000, simulations=50, workers=1, channels=4, blocks=0
     )
     argv = [sys.executable, "-m", "policylab", "train", "alphazero", "tic-tac-toe", "--out",
             str(run), "--no-progress"]  # fmt: skip
@@ -200,8 +200,8 @@ def _playing(pid: int) -> bool:
 
 
 def _wait_for_workers(proc: subprocess.Popen[str]) -> list[int]:
-    # both workers busy with games that would take them minutes to finish
-    _wait_for(lambda: sum(_playing(w) for w in _workers(proc.pid)) >= 2, proc)
+    # the worker busy with games that would take it minutes to finish
+    _wait_for(lambda: any(_playing(w) for w in _workers(proc.pid)), proc)
     return _workers(proc.pid)
 
 
@@ -226,5 +226,25 @@ def test_alphazero_leaves_no_workers_behind(tmp_path: Path, how: signal.Signals)
         if proc.poll() is None:
             proc.kill()
         for w in workers:  # whatever the test found, leave no process behind
+            if _alive(w):
+                os.kill(w, signal.SIGKILL)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_alphazero_stops_when_a_worker_dies(tmp_path: Path) -> None:
+    run = tmp_path / "az"
+    proc = _start_alphazero(run)
+    workers: list[int] = []
+    try:
+        workers = _wait_for_workers(proc)
+        os.kill(workers[0], signal.SIGKILL)  # as the out-of-memory killer would
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 1, err
+        assert "a self-play worker process died" in err and "--resume" in err
+        assert json.loads((run / "run.json").read_text())["iteration"] == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        for w in workers:
             if _alive(w):
                 os.kill(w, signal.SIGKILL)

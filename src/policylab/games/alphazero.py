@@ -37,7 +37,7 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from multiprocessing import get_context
+from multiprocessing import active_children, get_context
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -555,6 +555,7 @@ def train_alphazero(
             if cfg.workers > 0
             else None
         )
+        worker_pids = {p.pid for p in active_children()} if pool is not None else set()
         finished = False
 
         def stop_if_interrupted(iterations_done: int) -> None:
@@ -625,6 +626,12 @@ def train_alphazero(
                         for r in pending:
                             while not r.ready():  # a signal is seen within a tenth of a second
                                 stop_if_interrupted(it)
+                                if not worker_pids <= {p.pid for p in active_children()}:
+                                    raise RuntimeError(  # the pool would wait for it forever
+                                        "a self-play worker process died (killed, or out of "
+                                        "memory); the last checkpoint is kept: continue with "
+                                        "--resume"
+                                    )
                                 r.wait(0.1)
                         by_seed = {
                             s: r

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from policylab.exceptions import InvalidArgumentError
+from policylab.exceptions import InvalidArgumentError, RunFolderError
 from policylab.games import CONNECT_FOUR, TIC_TAC_TOE, make_player
 
 pytest.importorskip("torch")
@@ -48,7 +48,7 @@ def test_smoke_run_resume_and_player(tmp_path):
     rows = (run / "progress.csv").read_text().strip().splitlines()
     assert len(rows) == 1 + 2 and rows[0].startswith("step,loss_value,loss_policy")
     assert json.loads((run / "run.json").read_text())["iteration"] == 2
-    with pytest.raises(InvalidArgumentError, match="already holds a run"):
+    with pytest.raises(RunFolderError, match="already holds a run"):
         train_alphazero("tic-tac-toe", run, cfg)
     train_alphazero("tic-tac-toe", run, resume=True, iterations=3)
     assert json.loads((run / "run.json").read_text())["iteration"] == 3

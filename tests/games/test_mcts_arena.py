@@ -76,6 +76,11 @@ def test_wilson_interval_known_values():
     assert lo == 0.0 and hi == pytest.approx(0.2775, abs=1e-4)
     lo, hi = wilson_interval(5, 10)
     assert (lo, hi) == (pytest.approx(0.2366, abs=1e-4), pytest.approx(0.7634, abs=1e-4))
+    assert wilson_interval(0, 0) == (0.0, 1.0)  # no games: nothing known
+    with pytest.raises(InvalidArgumentError, match="0 <= k <= n"):
+        wilson_interval(11, 10)
+    with pytest.raises(InvalidArgumentError, match="0 <= k <= n"):
+        wilson_interval(1, -1)
 
 
 def test_player_spec_errors(tmp_path):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from policylab.exceptions import CheckpointError, InvalidArgumentError
+from policylab.exceptions import InvalidArgumentError, RunFolderError
 from policylab.games import TIC_TAC_TOE, make_player, solve_tic_tac_toe
 from policylab.games.arena import worst_outcome
 from policylab.games.learned import train_selfplay_td
@@ -34,7 +34,7 @@ def test_run_folder_player_and_refusals(trained):
     loaded = make_player(str(run), TIC_TAC_TOE)
     s = TIC_TAC_TOE.from_moves("15")
     assert loaded.choose(s) == player.choose(s)
-    with pytest.raises(InvalidArgumentError, match="already holds a run"):
+    with pytest.raises(RunFolderError, match="already holds a run"):
         train_selfplay_td(run)
     with pytest.raises(InvalidArgumentError, match="learned tic-tac-toe, not connect-four"):
         from policylab.games import CONNECT_FOUR
@@ -62,7 +62,7 @@ def test_same_seed_same_table_and_resume_matches(tmp_path):
     save_checkpoint(tmp_path / "c" / "checkpoint.pt", meta2, {"values": V})
     resumed = train_selfplay_td(tmp_path / "c", resume=True).values
     assert np.array_equal(resumed, a) and np.array_equal(part.values, a)
-    with pytest.raises(CheckpointError, match="nothing to resume"):
+    with pytest.raises(RunFolderError, match="holds no run to resume"):
         train_selfplay_td(tmp_path / "d", resume=True)
 
 

@@ -9,13 +9,16 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.table import Table
 
 from policylab.cli.common import console, print_json
-from policylab.exceptions import InvalidArgumentError
+from policylab.exceptions import InvalidArgumentError, TrainingInterrupted
+
+if TYPE_CHECKING:
+    from policylab.runs import RunFolder
 
 __all__ = ["GAME_LEARNERS", "register", "solve_game", "train_game"]
 
@@ -182,40 +185,49 @@ def train_game(
     game: str,
     *,
     out: Path | None,
-    seed: int,
+    seed: int | None,
     resume: bool,
     fields: dict[str, Any],
     progress: bool,
 ) -> None:
-    """``policylab train selfplay-td|alphazero GAME --out DIR``; Ctrl-C keeps the checkpoint."""
+    """``policylab train selfplay-td|alphazero GAME --out DIR``.
+
+    The run folder follows the rules of every ``train`` run (one process at a time, no
+    silent reuse, Ctrl-C or SIGTERM saves and exits with code 130 or 143); the message
+    of an interrupt counts self-play games (selfplay-td) or iterations (alphazero).
+    """
     from policylab.games.registry import get_game
-    from policylab.games.runs import check_run
+    from policylab.games.runs import RUN_MARKERS
+    from policylab.runs import RunFolder
 
     g = get_game(game)
+    seed = 0 if seed is None else seed
     run_dir = out or Path("runs") / f"{algo}-{g.name}-s{seed}"
-    check_run(run_dir, resume=resume)  # before any progress bar is drawn
+    run = RunFolder(
+        run_dir, resume=resume, markers=RUN_MARKERS, command=f"policylab train {algo} {g.name}"
+    )
     try:
         if algo == "selfplay-td":
-            _train_td(g.name, run_dir, seed, resume, fields, progress)
+            _train_td(g.name, run, seed, resume, fields, progress)
         else:
             from policylab.games.alphazero import train_alphazero_cli
 
-            train_alphazero_cli(g, run_dir, seed, resume, fields, progress, console)
-    except KeyboardInterrupt:
-        console.print(
-            f"\ninterrupted; the last checkpoint is in {run_dir} (continue with --resume)"
-        )
-        sys.exit(130)  # the shell convention for an interrupt
+            train_alphazero_cli(g, run, seed, resume, fields, progress, console)
+    except TrainingInterrupted as e:
+        what = "game" if algo == "selfplay-td" else "iteration"
+        typer.echo(f"interrupted at {what} {e.step:,}; continue with --resume", err=True)
+        sys.exit(128 + e.signal)  # 130 for Ctrl-C, 143 for SIGTERM (the shells' convention)
 
 
 def _train_td(
-    game: str, run_dir: Path, seed: int, resume: bool, fields: dict[str, Any], progress: bool
+    game: str, run: RunFolder, seed: int, resume: bool, fields: dict[str, Any], progress: bool
 ) -> None:
     import dataclasses
 
     from rich.progress import Progress
 
     from policylab.games.learned import train_selfplay_td
+    from policylab.games.runs import game_run
     from policylab.games.selfplay_td import SelfPlayTDConfig
 
     if game != "tic-tac-toe":
@@ -229,17 +241,29 @@ def _train_td(
             f"unknown selfplay-td setting(s) {', '.join(sorted(bad))}; "
             f"known: {', '.join(sorted(known))}"
         )
-    cfg = SelfPlayTDConfig(**{**fields, "seed": seed})
-    t0 = time.perf_counter()
-    with Progress(console=console, disable=not progress) as bar:
-        task = bar.add_task("self-play TD", total=cfg.episodes)
-        train_selfplay_td(
-            run_dir, cfg, resume=resume, on_chunk=lambda done, _: bar.update(task, completed=done)
+    if resume and fields:
+        raise InvalidArgumentError(
+            "--resume continues a run with its own settings; --set cannot change them"
         )
+    cfg = SelfPlayTDConfig(**{**fields, "seed": seed})
+    cfg.validate()
+    t0 = time.perf_counter()
+    with (
+        game_run(run, resume=resume, algo="selfplay-td", game=game),
+        Progress(console=console, disable=not progress) as bar,
+    ):
+        task = bar.add_task("self-play TD", total=None)
+        train_selfplay_td(
+            run,
+            cfg,
+            resume=resume,
+            on_chunk=lambda done, total: bar.update(task, completed=done, total=total),
+        )
+        episodes = run.read_json("run.json")["episodes_done"]
     console.print(
-        f"selfplay-td on tic-tac-toe: {cfg.episodes:,} self-play games in "
-        f"{time.perf_counter() - t0:.1f} s; run folder {run_dir} "
-        f"(try `policylab arena tic-tac-toe {run_dir} perfect`)"
+        f"selfplay-td on tic-tac-toe: {episodes:,} self-play games in all "
+        f"({time.perf_counter() - t0:.1f} s); run folder {run.path} "
+        f"(try `policylab arena tic-tac-toe {run.path} perfect`)"
     )
 
 

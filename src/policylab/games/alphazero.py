@@ -21,7 +21,9 @@ One iteration:
    it scores at least ``accept_score`` (wins + draws / 2 over games).
 
 The run folder keeps an atomic checkpoint after every iteration (networks,
-optimizer, replay, counters) and resumes from it.
+optimizer, replay, counters) and resumes from it. Ctrl-C or SIGTERM stops at once,
+keeping the checkpoint of the last whole iteration, and ends the self-play workers
+(which also end by themselves if the training process dies).
 """
 
 from __future__ import annotations
@@ -29,24 +31,28 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+import os
+import signal
+import sys
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from multiprocessing import get_context
+from multiprocessing import active_children, get_context
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from policylab.exceptions import CheckpointError, InvalidArgumentError
+from policylab.exceptions import CheckpointError, InvalidArgumentError, TrainingInterrupted
 from policylab.games.base import Game, GameState
 from policylab.games.registry import get_game
 
 if TYPE_CHECKING:
     import torch
     from rich.console import Console
+
+    from policylab.runs import RunFolder
 
 __all__ = [
     "PUCT",
@@ -414,6 +420,25 @@ def play_selfplay_game(
     return np.stack(planes), np.stack(pis), z
 
 
+def _worker_init(parent: int) -> None:
+    """Start of a self-play worker: die with the training process, leave Ctrl-C to it.
+
+    On Linux the kernel sends the worker SIGTERM when its parent ends, however it ends
+    (``prctl(PR_SET_PDEATHSIG)``); a parent already gone by then ends the worker at once.
+    SIGINT is ignored: a Ctrl-C in the terminal reaches the whole process group, and the
+    training process decides what to stop.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        pr_set_pdeathsig = 1
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(pr_set_pdeathsig, signal.SIGTERM, 0, 0, 0)
+    if os.getppid() != parent:
+        os._exit(1)
+
+
 def _worker_games(
     game_name: str, cfg_dict: dict[str, Any], weights: dict[str, NDArray[Any]], seeds: list[int]
 ) -> list[tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]]:
@@ -450,7 +475,7 @@ def _match(game: Game, a: AlphaZeroPlayer, b: AlphaZeroPlayer, games: int, seed:
 
 def train_alphazero(
     game: str | Game,
-    run_dir: str | Path,
+    run_dir: str | Path | RunFolder,
     config: AlphaZeroConfig | None = None,
     *,
     resume: bool = False,
@@ -461,7 +486,8 @@ def train_alphazero(
 
     Args:
         game: The game.
-        run_dir: The run folder (refused if it holds a run, unless ``resume``).
+        run_dir: The run folder (refused if it holds a run, unless ``resume``), a path or
+            a :class:`~policylab.runs.RunFolder`.
         config: Settings (default: the game's :func:`default_config`; on resume the run's own).
         resume: Continue the run in ``run_dir``.
         iterations: On resume, a new total number of iterations (to train longer).
@@ -469,16 +495,28 @@ def train_alphazero(
 
     Returns:
         The best network as a player.
+
+    Raises:
+        RunFolderError: If the run folder is in use, holds a run (without ``resume``),
+            holds none or another learner's (with it).
+        TrainingInterrupted: On Ctrl-C or SIGTERM (the checkpoint of the last whole
+            iteration is kept); its ``step`` counts the iterations done.
     """
     import torch
 
     from policylab.deep.common.agent import _TorchThreads
     from policylab.deep.common.checkpoint import load_checkpoint, save_checkpoint, to_numpy_tree
     from policylab.deep.common.logging import RunLogger
-    from policylab.games.runs import CHECKPOINT, open_run, trim_log, write_run_json
+    from policylab.games.runs import CHECKPOINT, game_run
+    from policylab.runs import RUN_JSON
 
     g = get_game(game)
-    with open_run(run_dir, resume=resume) as rd, _TorchThreads(1):  # small nets: 1 thread
+    with (
+        game_run(run_dir, resume=resume, algo="alphazero", game=g.name) as run,
+        _TorchThreads(1),  # small nets: 1 thread
+    ):
+        rd = run.path
+        resume = run.resume
         if resume:
             meta, tensors = load_checkpoint(rd / CHECKPOINT)
             if meta.get("algo") != "alphazero" or meta.get("game") != g.name:
@@ -487,7 +525,6 @@ def train_alphazero(
             if iterations is not None:
                 cfg = dataclasses.replace(cfg, iterations=iterations)
             done = int(meta["iteration"])
-            trim_log(rd, done)
         else:
             cfg = config or default_config(g)
             meta, tensors, done = {}, {}, 0
@@ -512,12 +549,19 @@ def train_alphazero(
         else:
             best.load_state_dict(net.state_dict())
         mirror = np.array(MIRROR[g.name])
-        logger = RunLogger(rd)
+        logger = RunLogger(rd, resume_step=done if resume else None)  # cut back to `done`
         pool = (
-            ProcessPoolExecutor(cfg.workers, mp_context=get_context("spawn"))
+            get_context("spawn").Pool(cfg.workers, _worker_init, (os.getpid(),))
             if cfg.workers > 0
             else None
         )
+        worker_pids = {p.pid for p in active_children()} if pool is not None else set()
+        finished = False
+
+        def stop_if_interrupted(iterations_done: int) -> None:
+            """On Ctrl-C: stop; the checkpoint on disk is that of ``iterations_done``."""
+            if run.interrupted:
+                raise TrainingInterrupted(iterations_done, str(rd), run.signal or 2)
 
         def save(iteration: int) -> None:
             lengths = np.array([len(x[2]) for x in games], dtype=np.int64)
@@ -548,98 +592,130 @@ def train_alphazero(
                     "replay": replay,
                 },
             )
-            write_run_json(rd, {k: v for k, v in doc.items() if k != "history"})
+            run.write_json(RUN_JSON, {k: v for k, v in doc.items() if k != "history"})
 
         try:
-            if done == 0:
-                save(0)
-            for it in range(done, cfg.iterations):
-                t0 = time.perf_counter()
-                ss = np.random.SeedSequence([cfg.seed, it])
-                seeds = [int(x) for x in ss.generate_state(cfg.games_per_iteration) % (2**31 - 1)]
-                if pool is None:
-                    ev = net_evaluator(best)
-                    new_games = [play_selfplay_game(g, ev, cfg, s) for s in seeds]
-                else:
-                    weights = {k: v.detach().numpy().copy() for k, v in best.state_dict().items()}
-                    chunks = [seeds[i :: cfg.workers] for i in range(cfg.workers)]
-                    futures = [
-                        pool.submit(_worker_games, g.name, dataclasses.asdict(cfg), weights, c)
-                        for c in chunks
-                        if c
+            with run.catch_interrupts():
+                if done == 0:
+                    save(0)
+                for it in range(done, cfg.iterations):
+                    stop_if_interrupted(it)
+                    t0 = time.perf_counter()
+                    ss = np.random.SeedSequence([cfg.seed, it])
+                    seeds = [
+                        int(x) for x in ss.generate_state(cfg.games_per_iteration) % (2**31 - 1)
                     ]
-                    parts = [f.result() for f in futures]
-                    by_seed = {
-                        s: r
-                        for c, p in zip([c for c in chunks if c], parts, strict=True)
-                        for s, r in zip(c, p, strict=True)
+                    if pool is None:
+                        ev = net_evaluator(best)
+                        new_games = []
+                        for s in seeds:
+                            stop_if_interrupted(it)
+                            new_games.append(play_selfplay_game(g, ev, cfg, s))
+                    else:
+                        weights = {
+                            k: v.detach().numpy().copy() for k, v in best.state_dict().items()
+                        }
+                        chunks = [seeds[i :: cfg.workers] for i in range(cfg.workers)]
+                        chunks = [c for c in chunks if c]
+                        pending = [
+                            pool.apply_async(
+                                _worker_games, (g.name, dataclasses.asdict(cfg), weights, c)
+                            )
+                            for c in chunks
+                        ]
+                        for r in pending:
+                            while not r.ready():  # a signal is seen within a tenth of a second
+                                stop_if_interrupted(it)
+                                if not worker_pids <= {p.pid for p in active_children()}:
+                                    raise RuntimeError(  # the pool would wait for it forever
+                                        "a self-play worker process died (killed, or out of "
+                                        "memory); the last checkpoint is kept: continue with "
+                                        "--resume"
+                                    )
+                                r.wait(0.1)
+                        by_seed = {
+                            s: r
+                            for c, p in zip(chunks, [r.get() for r in pending], strict=True)
+                            for s, r in zip(c, p, strict=True)
+                        }
+                        new_games = [by_seed[s] for s in seeds]
+                    t_play = time.perf_counter() - t0
+                    games = (games + new_games)[-cfg.replay_games :]
+                    planes = np.concatenate([x[0] for x in games])
+                    pis = np.concatenate([x[1] for x in games])
+                    zs = np.concatenate([x[2] for x in games])
+                    rng = np.random.default_rng(ss.spawn(1)[0])
+                    net.train()
+                    losses = []
+                    for _ in range(cfg.train_steps):
+                        stop_if_interrupted(it)
+                        idx = rng.integers(len(zs), size=min(cfg.batch_size, len(zs)))
+                        x, p, z = planes[idx].copy(), pis[idx].copy(), zs[idx]
+                        flip = rng.random(len(idx)) < 0.5  # the mirrored board is as good a sample
+                        x[flip] = x[flip][..., ::-1]
+                        p[flip] = p[flip][:, mirror]
+                        xt, pt, zt = torch.from_numpy(x), torch.from_numpy(p), torch.from_numpy(z)
+                        logits, v = net(xt)
+                        loss_v = torch.mean((zt - v) ** 2)
+                        loss_p = -torch.mean(torch.sum(pt * torch.log_softmax(logits, -1), -1))
+                        loss = loss_v + loss_p
+                        opt.zero_grad()
+                        loss.backward()  # type: ignore[no-untyped-call]
+                        opt.step()
+                        losses.append((loss_v.item(), loss_p.item()))
+                    net.eval()
+                    score = 1.0
+                    stop_if_interrupted(it)
+                    if cfg.eval_games > 0:
+                        cand = AlphaZeroPlayer(net, g, cfg.eval_simulations, cfg.c_puct)
+                        champ = AlphaZeroPlayer(best, g, cfg.eval_simulations, cfg.c_puct)
+                        score = _match(g, cand, champ, cfg.eval_games, int(ss.generate_state(1)[0]))
+                    accepted = score >= cfg.accept_score
+                    if accepted:
+                        best.load_state_dict(net.state_dict())
+                    lv, lp = np.mean(losses, axis=0)
+                    metrics = {
+                        "loss_value": float(lv),
+                        "loss_policy": float(lp),
+                        "eval_score": float(score),
+                        "accepted": float(accepted),
+                        "selfplay_positions": float(sum(len(x[2]) for x in new_games)),
+                        "selfplay_seconds": t_play,
+                        "seconds": time.perf_counter() - t0,
                     }
-                    new_games = [by_seed[s] for s in seeds]
-                t_play = time.perf_counter() - t0
-                games = (games + new_games)[-cfg.replay_games :]
-                planes = np.concatenate([x[0] for x in games])
-                pis = np.concatenate([x[1] for x in games])
-                zs = np.concatenate([x[2] for x in games])
-                rng = np.random.default_rng(ss.spawn(1)[0])
-                net.train()
-                losses = []
-                for _ in range(cfg.train_steps):
-                    idx = rng.integers(len(zs), size=min(cfg.batch_size, len(zs)))
-                    x, p, z = planes[idx].copy(), pis[idx].copy(), zs[idx]
-                    flip = rng.random(len(idx)) < 0.5  # the mirrored board is as good a sample
-                    x[flip] = x[flip][..., ::-1]
-                    p[flip] = p[flip][:, mirror]
-                    xt, pt, zt = torch.from_numpy(x), torch.from_numpy(p), torch.from_numpy(z)
-                    logits, v = net(xt)
-                    loss_v = torch.mean((zt - v) ** 2)
-                    loss_p = -torch.mean(torch.sum(pt * torch.log_softmax(logits, -1), -1))
-                    loss = loss_v + loss_p
-                    opt.zero_grad()
-                    loss.backward()  # type: ignore[no-untyped-call]
-                    opt.step()
-                    losses.append((loss_v.item(), loss_p.item()))
-                net.eval()
-                score = 1.0
-                if cfg.eval_games > 0:
-                    cand = AlphaZeroPlayer(net, g, cfg.eval_simulations, cfg.c_puct)
-                    champ = AlphaZeroPlayer(best, g, cfg.eval_simulations, cfg.c_puct)
-                    score = _match(g, cand, champ, cfg.eval_games, int(ss.generate_state(1)[0]))
-                accepted = score >= cfg.accept_score
-                if accepted:
-                    best.load_state_dict(net.state_dict())
-                lv, lp = np.mean(losses, axis=0)
-                metrics = {
-                    "loss_value": float(lv),
-                    "loss_policy": float(lp),
-                    "eval_score": float(score),
-                    "accepted": float(accepted),
-                    "selfplay_positions": float(sum(len(x[2]) for x in new_games)),
-                    "selfplay_seconds": t_play,
-                    "seconds": time.perf_counter() - t0,
-                }
-                history.append(metrics)
-                save(it + 1)
-                logger.log(it + 1, metrics)
-                if on_iteration is not None:
-                    on_iteration(it + 1, cfg.iterations, metrics)
+                    history.append(metrics)
+                    save(it + 1)
+                    logger.log(it + 1, metrics)
+                    if on_iteration is not None:
+                        on_iteration(it + 1, cfg.iterations, metrics)
+            finished = True
         finally:
             logger.close()
             if pool is not None:
-                pool.shutdown(cancel_futures=True)
+                if finished:
+                    pool.close()
+                else:  # Ctrl-C, kill or an error: the workers' games are not waited for
+                    pool.terminate()
+                pool.join()
         return AlphaZeroPlayer(best, g, cfg.eval_simulations, cfg.c_puct, name=str(rd))
 
 
 def train_alphazero_cli(
     game: Game,
-    run_dir: Path,
+    run: RunFolder,
     seed: int,
     resume: bool,
     fields: dict[str, Any],
     progress: bool,
     console: Console,
 ) -> None:
-    """``policylab train alphazero GAME``: progress bar over iterations and a summary."""
+    """``policylab train alphazero GAME``: progress bar over iterations and a summary.
+
+    ``run`` (not yet open) is opened once the settings are checked, before any output.
+    """
     from rich.progress import Progress
+
+    from policylab.games.runs import game_run
 
     iterations = fields.pop("iterations", None) if resume else None
     if resume and fields:
@@ -648,7 +724,10 @@ def train_alphazero_cli(
         )
     cfg = None if resume else default_config(game, **{**fields, "seed": seed})
     t0 = time.perf_counter()
-    with Progress(console=console, disable=not progress) as bar:
+    with (
+        game_run(run, resume=resume, algo="alphazero", game=game.name),
+        Progress(console=console, disable=not progress) as bar,
+    ):
         task = bar.add_task("alphazero", total=None)
 
         def report(done: int, total: int, m: dict[str, float]) -> None:
@@ -660,10 +739,8 @@ def train_alphazero_cli(
                 f"{m['seconds']:.1f} s"
             )
 
-        train_alphazero(
-            game, run_dir, cfg, resume=resume, iterations=iterations, on_iteration=report
-        )
+        train_alphazero(game, run, cfg, resume=resume, iterations=iterations, on_iteration=report)
     console.print(
-        f"alphazero on {game.name}: {time.perf_counter() - t0:.1f} s; run folder {run_dir} "
-        f"(try `policylab arena {game.name} {run_dir} mcts:100`)"
+        f"alphazero on {game.name}: {time.perf_counter() - t0:.1f} s; run folder {run.path} "
+        f"(try `policylab arena {game.name} {run.path} mcts:100`)"
     )

@@ -14,12 +14,33 @@ __all__ = ["ArenaResult", "arena", "play_game", "wilson_interval", "worst_outcom
 
 
 def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """Wilson score interval of a proportion k/n (95% by default).
+    """Wilson score interval of a proportion: k successes in n trials (95% by default).
 
-    centre = (p + z^2 / 2n) / (1 + z^2 / n),
-    half-width = z / (1 + z^2 / n) * sqrt(p (1 - p) / n + z^2 / 4n^2).
+    With p = k / n (Wilson, 1927, *J. Amer. Statist. Assoc.* 22:209-212):
+
+        centre     = (p + z^2 / 2n) / (1 + z^2 / n)
+        half-width = z / (1 + z^2 / n) * sqrt(p (1 - p) / n + z^2 / 4n^2)
+
+    and the interval is [centre - half-width, centre + half-width]. Unlike the normal
+    approximation p +- z sqrt(p (1 - p) / n) it stays inside [0, 1] and does not
+    collapse to a point at k = 0 or k = n.
+
+    Args:
+        k: Successes (0 <= k <= n).
+        n: Trials; with none, nothing is known and the interval is [0, 1].
+        z: The standard normal quantile of the confidence level (1.96: 95%).
+
+    Returns:
+        (lower, upper) bounds of the interval.
+
+    Raises:
+        InvalidArgumentError: If n < 0, k is outside [0, n], or z <= 0.
     """
-    if n <= 0:
+    if n < 0 or not 0 <= k <= max(n, 0) or not z > 0:
+        raise InvalidArgumentError(
+            f"wilson_interval needs 0 <= k <= n and z > 0; got k={k!r}, n={n!r}, z={z!r}"
+        )
+    if n == 0:
         return (0.0, 1.0)
     p = k / n
     d = 1 + z * z / n

@@ -2,7 +2,10 @@
 
 A run folder holds ``run.json`` (algorithm, game, settings, progress) and
 ``checkpoint.pt`` (written atomically by the deep-RL checkpoint helpers), so a
-crash, Ctrl-C or kill leaves the last whole checkpoint.
+crash, Ctrl-C or kill leaves the last whole checkpoint. The folder follows the rules
+of every training run (:class:`policylab.runs.RunFolder`): one process at a time, never
+reused without ``resume``, and Ctrl-C (or SIGTERM) stops after the chunk of games in
+progress, saves, and raises :class:`~policylab.exceptions.TrainingInterrupted`.
 """
 
 from __future__ import annotations
@@ -12,17 +15,18 @@ from pathlib import Path
 
 import numpy as np
 
-from policylab.exceptions import CheckpointError, InvalidArgumentError
+from policylab.exceptions import CheckpointError, InvalidArgumentError, TrainingInterrupted
 from policylab.games.base import Game
 from policylab.games.players import Player
-from policylab.games.runs import CHECKPOINT, open_run, read_run_json, write_run_json
+from policylab.games.runs import CHECKPOINT, game_run, read_run_json
 from policylab.games.selfplay_td import SelfPlayTDConfig, TDPlayer, initial_values, train_chunk
+from policylab.runs import RUN_JSON, RunFolder
 
 __all__ = ["load_player", "train_selfplay_td"]
 
 
 def train_selfplay_td(
-    run_dir: str | Path,
+    run_dir: str | Path | RunFolder,
     config: SelfPlayTDConfig | None = None,
     *,
     resume: bool = False,
@@ -31,18 +35,26 @@ def train_selfplay_td(
     """Learn tic-tac-toe by self-play TD into ``run_dir``; a checkpoint after every chunk.
 
     Args:
-        run_dir: The run folder (refused if it holds a run, unless ``resume``).
+        run_dir: The run folder (refused if it holds a run, unless ``resume``), a path or
+            a :class:`~policylab.runs.RunFolder`.
         config: Settings (ignored on resume, where the run's own are used).
         resume: Continue the run in ``run_dir`` from its last checkpoint.
         on_chunk: Called with (episodes done, episodes in all) after each chunk.
 
     Returns:
         The greedy player of the learned table.
+
+    Raises:
+        RunFolderError: If the run folder is in use, holds a run (without ``resume``),
+            holds none or another learner's (with it).
+        TrainingInterrupted: On Ctrl-C or SIGTERM, after saving; its ``step`` counts the
+            self-play games played.
     """
     from policylab.deep.common.checkpoint import load_checkpoint, save_checkpoint
 
-    with open_run(run_dir, resume=resume) as rd:
-        if resume:
+    with game_run(run_dir, resume=resume, algo="selfplay-td", game="tic-tac-toe") as run:
+        rd = run.path
+        if run.resume:
             meta, tensors = load_checkpoint(rd / CHECKPOINT)
             if meta.get("algo") != "selfplay-td":
                 raise CheckpointError(f"{str(rd)!r} is not a selfplay-td run")
@@ -56,27 +68,30 @@ def train_selfplay_td(
             V = initial_values()
         per = cfg.episodes // cfg.chunks
 
+        def episodes_after(chunks_done: int) -> int:
+            return cfg.episodes if chunks_done == cfg.chunks else chunks_done * per
+
         def save(chunks_done: int) -> None:
-            episodes = cfg.episodes if chunks_done == cfg.chunks else chunks_done * per
             meta = {
                 "algo": "selfplay-td",
                 "game": "tic-tac-toe",
                 "config": cfg.to_dict(),
                 "chunks_done": chunks_done,
-                "episodes_done": episodes,
+                "episodes_done": episodes_after(chunks_done),
             }
             save_checkpoint(rd / CHECKPOINT, meta, {"values": V})
-            write_run_json(rd, meta)
+            run.write_json(RUN_JSON, meta)
 
-        if done == 0:
-            save(0)
-        for chunk in range(done, cfg.chunks):
-            train_chunk(V, cfg, chunk)  # Ctrl-C here keeps the previous chunk's checkpoint
-            save(chunk + 1)
-            if on_chunk is not None:
-                on_chunk(
-                    cfg.episodes if chunk + 1 == cfg.chunks else (chunk + 1) * per, cfg.episodes
-                )
+        with run.catch_interrupts():
+            if done == 0:
+                save(0)
+            for chunk in range(done, cfg.chunks):
+                if run.interrupted:  # the last chunk's checkpoint is saved
+                    raise TrainingInterrupted(episodes_after(chunk), str(rd), run.signal or 2)
+                train_chunk(V, cfg, chunk)
+                save(chunk + 1)
+                if on_chunk is not None:
+                    on_chunk(episodes_after(chunk + 1), cfg.episodes)
         return TDPlayer(V)
 
 

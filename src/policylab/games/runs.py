@@ -1,120 +1,93 @@
-"""The run folder of a game learner: one process at a time, never reused silently.
+"""What is game-specific about a game learner's run folder.
 
-Everything a learner writes goes through :func:`open_run`, so that the folder rules
-(a lock, refusal of an existing run without ``resume``, checkpoints written
-atomically) live in one place.
+The folder rules themselves (a lock, no silent reuse, atomic writes, stale temporary
+files removed, Ctrl-C that saves) are those of every training command, in
+:class:`policylab.runs.RunFolder`; this module adds only what a board-game run
+needs on top: that a resumed folder holds a run of the same learner on the same
+game, and reading such a folder's ``run.json`` to play its learner.
 """
 
 from __future__ import annotations
 
 import contextlib
-import fcntl
-import json
 import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from policylab.exceptions import CheckpointError, InvalidArgumentError
+from policylab.exceptions import CheckpointError, RunFolderError
+from policylab.runs import RUN_JSON, RunFolder
 
-__all__ = [
-    "CHECKPOINT",
-    "RUN_JSON",
-    "check_run",
-    "open_run",
-    "read_run_json",
-    "trim_log",
-    "write_run_json",
-]
+__all__ = ["CHECKPOINT", "game_run", "read_run_json"]
 
 CHECKPOINT = "checkpoint.pt"
-RUN_JSON = "run.json"
-_LOCK = ".lock"
+"""The checkpoint file of a run folder (the same name as a deep-RL run's)."""
 
-
-def check_run(path: str | os.PathLike[str], *, resume: bool) -> None:
-    """Refuse a folder that holds a run (without ``resume``) or none (with it).
-
-    Raises:
-        InvalidArgumentError: If the folder holds a run and ``resume`` is False.
-        CheckpointError: If ``resume`` is True and the folder holds no checkpoint.
-    """
-    p = Path(path)
-    has_run = (p / CHECKPOINT).exists()
-    if has_run and not resume:
-        raise InvalidArgumentError(
-            f"{str(p)!r} already holds a run; pass --resume to continue it or --out for a new "
-            "folder"
-        )
-    if resume and not has_run:
-        raise CheckpointError(f"nothing to resume: {str(p)!r} holds no {CHECKPOINT}")
+RUN_MARKERS = (RUN_JSON, CHECKPOINT, "progress.csv")
+"""Files whose presence means a folder holds a run (as for a deep-RL run)."""
 
 
 @contextlib.contextmanager
-def open_run(path: str | os.PathLike[str], *, resume: bool) -> Iterator[Path]:
-    """Hold the run folder ``path`` for this process while the block runs.
+def game_run(
+    run_dir: str | os.PathLike[str] | RunFolder, *, resume: bool, algo: str, game: str
+) -> Iterator[RunFolder]:
+    """The run folder of ``algo`` learning ``game``, held by this process while the block runs.
+
+    Args:
+        run_dir: A path (opened and closed here), or a :class:`~policylab.runs.RunFolder`
+            (opened here unless it is open already, as the command line does).
+        resume: Continue the run in the folder (else a new run).
+        algo: The learner (``"selfplay-td"``, ``"alphazero"``).
+        game: The game's name.
 
     Raises:
-        InvalidArgumentError: If the folder holds a run and ``resume`` is False, or
-            another process holds it.
-        CheckpointError: If ``resume`` is True and the folder holds no checkpoint.
+        RunFolderError: If the folder is in use, holds a run and ``resume`` is False,
+            holds none with ``resume``, holds a run of another learner or game, or
+            stopped before its first checkpoint.
     """
-    p = Path(path)
-    check_run(p, resume=resume)
-    p.mkdir(parents=True, exist_ok=True)
-    fd = os.open(p / _LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    run = (
+        run_dir
+        if isinstance(run_dir, RunFolder)
+        else RunFolder(
+            run_dir, resume=resume, markers=RUN_MARKERS, command=f"policylab train {algo} {game}"
+        )
+    )
+    own = not run.is_open
+    if own:
+        run.open()
     try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise InvalidArgumentError(
-                f"{str(p)!r} is in use by another process (its lock is held)"
-            ) from None
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
-        yield p
+        if run.resume:
+            info = run.info or {}
+            was_algo, was_game = info.get("algo"), info.get("game", info.get("env_id"))
+            if was_algo is not None and (was_algo, was_game) != (algo, game):
+                raise RunFolderError(
+                    f"{str(run.path)!r} is a {was_algo} run on {was_game}, not {algo} on "
+                    f"{game}; --resume continues a run as it is: policylab train {was_algo} "
+                    f"{was_game} --out {run.path} --resume"
+                )
+            if not run.file(CHECKPOINT).is_file():
+                raise RunFolderError(
+                    f"{str(run.path)!r} holds a run that stopped before its first checkpoint; "
+                    "there is nothing to resume: remove the folder or choose another --out"
+                )
+        yield run
     finally:
-        os.close(fd)  # closing the descriptor releases the lock
+        if own:
+            run.close()
 
 
-def write_run_json(run_dir: Path, doc: dict[str, Any]) -> None:
-    """Atomically write ``run.json`` (what the run is; read by players and resume)."""
-    from policylab.deep.common.checkpoint import atomic_write_bytes
-
-    atomic_write_bytes(run_dir / RUN_JSON, (json.dumps(doc, indent=2) + "\n").encode())
-
-
-def read_run_json(run_dir: Path) -> dict[str, Any]:
-    """The ``run.json`` of a game learner's run folder.
+def read_run_json(run_dir: str | os.PathLike[str]) -> dict[str, Any]:
+    """The ``run.json`` of a game learner's run folder (what :func:`load_player` reads).
 
     Raises:
-        CheckpointError: If it is missing or malformed.
+        CheckpointError: If the folder holds no ``run.json`` or one that names no
+            algorithm and game.
+        RunFolderError: If ``run.json`` is not a JSON object.
     """
-    f = Path(run_dir) / RUN_JSON
-    try:
-        doc = json.loads(f.read_text())
-    except FileNotFoundError:
-        raise CheckpointError(
-            f"{str(run_dir)!r} is not a game learner's run folder (no {RUN_JSON})"
-        ) from None
-    except (OSError, ValueError) as e:
-        raise CheckpointError(f"{str(f)!r} is not valid JSON: {e}") from None
-    if not isinstance(doc, dict) or "algo" not in doc or "game" not in doc:
-        raise CheckpointError(f"{str(f)!r} does not name an algorithm and a game")
+    rd = Path(run_dir)
+    if not (rd / RUN_JSON).is_file():
+        raise CheckpointError(f"{str(rd)!r} is not a game learner's run folder (no {RUN_JSON})")
+    doc = RunFolder(rd).read_json(RUN_JSON)
+    if "algo" not in doc or "game" not in doc:
+        raise CheckpointError(f"{str(rd / RUN_JSON)!r} does not name an algorithm and a game")
     return doc
-
-
-def trim_log(run_dir: Path, last_step: int) -> None:
-    """Drop the rows of ``progress.csv`` past ``last_step`` (written after the last checkpoint).
-
-    A resumed run then logs on from its checkpoint, so the log always matches it.
-    """
-    from policylab.deep.common.checkpoint import atomic_write_bytes
-
-    f = Path(run_dir) / "progress.csv"
-    if not f.exists():
-        return
-    lines = f.read_text().splitlines(keepends=True)
-    keep = lines[:1] + [ln for ln in lines[1:] if int(ln.split(",", 1)[0]) <= last_step]
-    if len(keep) != len(lines):
-        atomic_write_bytes(f, "".join(keep).encode())

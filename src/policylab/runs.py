@@ -57,10 +57,22 @@ from typing import Any
 
 from policylab.exceptions import RunFolderError
 
-__all__ = ["LOCK_FILE", "RUN_JSON", "RunFolder", "atomic_write_bytes"]
+__all__ = [
+    "CHECKPOINT",
+    "LOCK_FILE",
+    "PROGRESS_CSV",
+    "RUN_JSON",
+    "RUN_MARKERS",
+    "RunFolder",
+    "atomic_write_bytes",
+]
 
 LOCK_FILE = ".lock"
 RUN_JSON = "run.json"
+CHECKPOINT = "checkpoint.pt"
+PROGRESS_CSV = "progress.csv"
+RUN_MARKERS = (RUN_JSON, CHECKPOINT, PROGRESS_CSV)
+"""Files whose presence means a folder holds a training run (deep RL or a game learner)."""
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:

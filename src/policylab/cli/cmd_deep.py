@@ -198,14 +198,13 @@ def _train(
         )
     import numpy as np
 
-    from policylab.deep.common.agent import CHECKPOINT, RUN_MARKERS
     from policylab.deep.common.config import config_from_dict, load_config_file
     from policylab.deep.common.envs import check_env_id
     from policylab.deep.common.evaluation import evaluate
     from policylab.deep.common.walking import evaluate_walking, reward_env, run_reward
     from policylab.deep.io import resume as resume_run
     from policylab.deep.zoo import ALGORITHMS, default_config, has_tuned_settings
-    from policylab.runs import RUN_JSON, RunFolder
+    from policylab.runs import CHECKPOINT, RUN_JSON, RUN_MARKERS, RunFolder
 
     algo = normalize_name(algo)
     if algo not in ALGORITHMS:

@@ -197,8 +197,7 @@ def train_game(
     of an interrupt counts self-play games (selfplay-td) or iterations (alphazero).
     """
     from policylab.games.registry import get_game
-    from policylab.games.runs import RUN_MARKERS
-    from policylab.runs import RunFolder
+    from policylab.runs import RUN_MARKERS, RunFolder
 
     g = get_game(game)
     seed = 0 if seed is None else seed

@@ -5,10 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from policylab.deep.common.agent import CHECKPOINT, Agent
+from policylab.deep.common.agent import Agent
 from policylab.deep.common.checkpoint import load_checkpoint
 from policylab.deep.common.envs import EnvLike
 from policylab.exceptions import CheckpointError
+from policylab.runs import CHECKPOINT
 
 __all__ = ["checkpoint_path", "load", "resume"]
 

@@ -16,15 +16,9 @@ from pathlib import Path
 from typing import Any
 
 from policylab.exceptions import CheckpointError, RunFolderError
-from policylab.runs import RUN_JSON, RunFolder
+from policylab.runs import CHECKPOINT, RUN_JSON, RUN_MARKERS, RunFolder
 
 __all__ = ["CHECKPOINT", "game_run", "read_run_json"]
-
-CHECKPOINT = "checkpoint.pt"
-"""The checkpoint file of a run folder (the same name as a deep-RL run's)."""
-
-RUN_MARKERS = (RUN_JSON, CHECKPOINT, "progress.csv")
-"""Files whose presence means a folder holds a run (as for a deep-RL run)."""
 
 
 @contextlib.contextmanager

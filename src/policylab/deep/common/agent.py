@@ -42,7 +42,7 @@ from policylab.deep.common.networks import activation
 from policylab.deep.common.normalize import ObservationNormalizer
 from policylab.deep.common.walking import resume_env, reward_description
 from policylab.exceptions import CheckpointError, InvalidArgumentError, TrainingInterrupted
-from policylab.runs import RUN_JSON, RunFolder
+from policylab.runs import CHECKPOINT, RUN_JSON, RUN_MARKERS, RunFolder
 from policylab.validation import check_count
 
 __all__ = ["Agent", "BaseConfig", "Callback"]
@@ -51,11 +51,6 @@ A = TypeVar("A", bound="Agent")
 Callback = Callable[["Agent", dict[str, float]], bool | None]
 """Called after every training iteration with the agent and that iteration's metrics;
 returning False stops training."""
-
-CHECKPOINT = "checkpoint.pt"
-PROGRESS_CSV = "progress.csv"
-RUN_MARKERS = (RUN_JSON, CHECKPOINT, PROGRESS_CSV)
-"""Files whose presence means a folder holds a deep-RL run."""
 
 
 @dataclasses.dataclass

@@ -104,7 +104,21 @@ def test_api_reference_documents_the_public_names(site: tuple[Path, str]) -> Non
         "mdp": ["policylab.mdp.FiniteMDP", "policylab.mdp.Policy"],
         "planning": ["policylab.planning.value_iteration", "policylab.planning.evaluate_policy"],
         "tabular": ["policylab.tabular.mc_prediction", "policylab.tabular.q_learning"],
-        "deep": ["policylab.deep.PPO", "policylab.deep.DQN"],
+        "deep": [
+            "policylab.deep.PPO",
+            "policylab.deep.DQN",
+            "policylab.deep.SAC",
+            "policylab.deep.TD3",
+            "policylab.deep.WalkingReward",
+        ],
+        "games": [
+            "policylab.games.solve_tic_tac_toe",
+            "policylab.games.connect_four_solver",
+            "policylab.games.UCT",
+            "policylab.games.make_player",
+            "policylab.games.arena.arena",
+            "policylab.games.selfplay_td.TDPlayer",
+        ],
         "exceptions": ["policylab.exceptions.InvalidMDPError"],
     }
     for page, names in expect.items():

@@ -17,7 +17,14 @@ from typing import Any, TypeVar
 
 from policylab.exceptions import InvalidArgumentError
 
-__all__ = ["config_from_dict", "config_help", "documented", "load_config_file", "option"]
+__all__ = [
+    "check_replay_settings",
+    "config_from_dict",
+    "config_help",
+    "documented",
+    "load_config_file",
+    "option",
+]
 
 C = TypeVar("C")
 
@@ -142,3 +149,20 @@ def check(cond: bool, message: str) -> None:
     """Raise :class:`InvalidArgumentError` with ``message`` unless ``cond``."""
     if not cond:
         raise InvalidArgumentError(message)
+
+
+def check_replay_settings(cfg: Any) -> None:
+    """The range checks every replay-based learner shares (DQN, SAC, TD3).
+
+    Checks ``buffer_size``, ``batch_size``, ``learning_starts``, ``train_freq``,
+    ``gradient_steps`` and ``tau`` (the Polyak weight, in (0, 1]).
+
+    Raises:
+        InvalidArgumentError: Naming the first field out of range and its value.
+    """
+    check(cfg.buffer_size >= 1, f"buffer_size must be >= 1; got {cfg.buffer_size}")
+    check(cfg.batch_size >= 1, f"batch_size must be >= 1; got {cfg.batch_size}")
+    check(cfg.learning_starts >= 0, f"learning_starts must be >= 0; got {cfg.learning_starts}")
+    check(cfg.train_freq >= 1, f"train_freq must be >= 1; got {cfg.train_freq}")
+    check(cfg.gradient_steps >= 0, f"gradient_steps must be >= 0; got {cfg.gradient_steps}")
+    check(0.0 < cfg.tau <= 1.0, f"tau must be in (0, 1]; got {cfg.tau}")

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import NStepWindow, ReplayBatch, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
-from policylab.deep.common.config import check, option
+from policylab.deep.common.config import check_replay_settings, option
 from policylab.deep.common.losses import twin_q_loss
 from policylab.deep.common.networks import TwinQNetwork, clip_grad_norm
 from policylab.exceptions import InvalidArgumentError, NonFiniteError
@@ -59,14 +59,7 @@ class OffPolicyConfig(BaseConfig):
     def validate(self) -> None:
         """Raise InvalidArgumentError on values out of range."""
         super().validate()
-        check(self.buffer_size >= 1, f"buffer_size must be >= 1; got {self.buffer_size}")
-        check(self.batch_size >= 1, f"batch_size must be >= 1; got {self.batch_size}")
-        check(
-            self.learning_starts >= 0, f"learning_starts must be >= 0; got {self.learning_starts}"
-        )
-        check(self.train_freq >= 1, f"train_freq must be >= 1; got {self.train_freq}")
-        check(self.gradient_steps >= 0, f"gradient_steps must be >= 0; got {self.gradient_steps}")
-        check(0.0 < self.tau <= 1.0, f"tau must be in (0, 1]; got {self.tau}")
+        check_replay_settings(self)
 
 
 def check_bounded_box(algo: str, space: gym.Space[Any]) -> gym.spaces.Box:

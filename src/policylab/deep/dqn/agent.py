@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import NStepWindow, PrioritizedReplayBuffer, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
-from policylab.deep.common.config import check, documented, option
+from policylab.deep.common.config import check, check_replay_settings, documented, option
 from policylab.deep.common.networks import clip_grad_norm
 from policylab.deep.dqn.losses import q_learning_targets, td_loss
 from policylab.deep.dqn.networks import QNetwork
@@ -58,17 +58,8 @@ class DQNConfig(BaseConfig):
     def validate(self) -> None:
         """Raise InvalidArgumentError on values out of range."""
         super().validate()
-        check(self.buffer_size >= 1, f"buffer_size must be >= 1; got {self.buffer_size}")
-        check(self.batch_size >= 1, f"batch_size must be >= 1; got {self.batch_size}")
-        check(
-            self.learning_starts >= 0, f"learning_starts must be >= 0; got {self.learning_starts}"
-        )
-        check(
-            self.train_freq >= 1 and self.gradient_steps >= 0,
-            "train_freq must be >= 1, gradient_steps >= 0",
-        )
+        check_replay_settings(self)
         check(self.target_update_interval >= 1, "target_update_interval must be >= 1")
-        check(0.0 < self.tau <= 1.0, f"tau must be in (0, 1]; got {self.tau}")
         check(0.0 <= self.exploration_fraction <= 1.0, "exploration_fraction must be in [0, 1]")
         for name in ("exploration_initial_eps", "exploration_final_eps"):
             v = getattr(self, name)

@@ -11,7 +11,8 @@ the Statistical Precipice" (NeurIPS), and computed as its library rliable does::
     pl.stats.bootstrap_ci(scores, pl.stats.iqm, reps=2000, seed=0)   # (low, high)
     pl.stats.summarize(scores)      # {"iqm": {"value", "low", "high"}, "mean": ..., ...}
 
-Pure NumPy; the bootstrap is vectorised over resamples.
+Pure NumPy; the bootstrap is vectorised over resamples. :func:`read_sweep` and
+:func:`score_matrices` read the folders of ``policylab sweep`` and ``policylab tune``.
 """
 
 from policylab.stats.aggregates import (
@@ -31,10 +32,14 @@ from policylab.stats.bootstrap import (
     probability_of_improvement_ci,
     summarize,
 )
+from policylab.stats.sweeps import ScoreMatrix, Sweep, SweepRun, read_sweep, score_matrices
 
 __all__ = [
     "DEFAULT_REPS",
     "SUMMARY_STATISTICS",
+    "ScoreMatrix",
+    "Sweep",
+    "SweepRun",
     "bootstrap_ci",
     "bootstrap_distribution",
     "iqm",
@@ -45,5 +50,7 @@ __all__ = [
     "performance_profile_ci",
     "probability_of_improvement",
     "probability_of_improvement_ci",
+    "read_sweep",
+    "score_matrices",
     "summarize",
 ]

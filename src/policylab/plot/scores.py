@@ -165,16 +165,20 @@ def performance_profile_figure(
                 x, t, reps=reps, confidence=confidence, seed=seed + k
             )
             ax.fill_between(t, low, high, color=color, alpha=0.2, lw=0, step="post")
-    ax.set_xlabel(f"{score_label} threshold τ")
-    ax.set_ylabel("fraction of runs with score > τ")
+    _label_axes(ax, f"{score_label} threshold τ", "fraction of runs with score > τ")
     ax.set_ylim(-0.02, 1.02)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, frameon=False)
     ax.set_title(
         (title or "Performance profiles") + f"\n({confidence:.0%} stratified bootstrap bands)",
         fontsize=11,
     )
     return fig
+
+
+def _label_axes(ax: Any, x_label: str, y_label: str) -> None:
+    ax.set_xlabel(x_label)
+    ax.set_ylabel(y_label)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, frameon=False)
 
 
 def align_curves(
@@ -264,10 +268,7 @@ def run_curves_figure(
                 seed=k,
             )
         ax.set_title(task, fontsize=10)
-        ax.set_xlabel(x_label)
-        ax.set_ylabel(y_label)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, frameon=False)
+        _label_axes(ax, x_label, y_label)
     fig.suptitle(
         (title or "Learning curves") + f"\n(mean over runs with {confidence:.0%} bootstrap band)",
         fontsize=11,

@@ -120,9 +120,20 @@ def _resample(x: FloatArray, count: int, rng: np.random.Generator) -> FloatArray
     return x[rows, np.arange(m)]
 
 
-def _chunks(reps: int, matrix_size: int) -> list[int]:
-    per = max(1, _CHUNK_ELEMENTS // max(1, matrix_size))
-    return [min(per, reps - start) for start in range(0, reps, per)]
+def _in_chunks(reps: int, size: int, width: int, draw: Callable[[int], FloatArray]) -> FloatArray:
+    """``reps`` rows of ``width`` statistics, drawn ``draw(count)`` rows at a time.
+
+    ``size`` is the number of values one resample holds (its matrix, times the taus of a
+    profile): each chunk holds at most about ``_CHUNK_ELEMENTS`` of them, so memory stays
+    bounded whatever ``reps`` is. The chunks are drawn in order from one generator, so
+    the result depends only on the seed and the chunk size.
+    """
+    per = max(1, _CHUNK_ELEMENTS // max(1, size))
+    out = np.empty((reps, width))
+    for start in range(0, reps, per):
+        count = min(per, reps - start)
+        out[start : start + count] = draw(count).reshape(count, width)
+    return out
 
 
 def bootstrap_distribution(
@@ -162,15 +173,13 @@ def bootstrap_distribution(
     if not stats_list:
         raise InvalidArgumentError("statistics is empty; give at least one statistic")
     kernels = [_kernel(s) for s in stats_list]
-    reps = check_count(reps, "reps")
     rng = as_generator(seed)
-    out = np.empty((reps, len(kernels)))
-    start = 0
-    for count in _chunks(reps, x.size):
+
+    def draw(count: int) -> FloatArray:
         batch = _resample(x, count, rng)
-        for k, kernel in enumerate(kernels):
-            out[start : start + count, k] = kernel(batch)
-        start += count
+        return np.stack([kernel(batch) for kernel in kernels], axis=-1)
+
+    out = _in_chunks(check_count(reps, "reps"), x.size, len(kernels), draw)
     return out[:, 0] if one else out
 
 
@@ -304,13 +313,13 @@ def performance_profile_ci(
     x = check_scores(scores)
     t = check_taus(taus)
     confidence = _check_confidence(confidence)
-    reps = check_count(reps, "reps")
     rng = as_generator(seed)
-    out = np.empty((reps, t.size))
-    start = 0
-    for count in _chunks(reps, x.size * t.size):
-        out[start : start + count] = _performance_profile(_resample(x, count, rng), t)
-        start += count
+    out = _in_chunks(
+        check_count(reps, "reps"),
+        x.size * t.size,
+        t.size,
+        lambda count: _performance_profile(_resample(x, count, rng), t),
+    )
     return _percentile_interval(out, confidence)
 
 
@@ -339,14 +348,12 @@ def probability_of_improvement_ci(
     """
     a, b = check_pair(x, y)
     confidence = _check_confidence(confidence)
-    reps = check_count(reps, "reps")
     rng = as_generator(seed)
-    out = np.empty(reps)
-    start = 0
-    for count in _chunks(reps, a.shape[0] * b.shape[0] * a.shape[1]):
+
+    def draw(count: int) -> FloatArray:
         ra = _resample(a, count, rng)
-        rb = _resample(b, count, rng)
-        out[start : start + count] = _probability_of_improvement(ra, rb)
-        start += count
-    lo, hi = _percentile_interval(out, confidence)
+        return _probability_of_improvement(ra, _resample(b, count, rng))
+
+    out = _in_chunks(check_count(reps, "reps"), a.shape[0] * b.size, 1, draw)
+    lo, hi = _percentile_interval(out[:, 0], confidence)
     return float(lo), float(hi)

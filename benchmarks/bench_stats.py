@@ -58,6 +58,34 @@ def scipy_ci(scores: np.ndarray, reps: int, seed: int) -> tuple[float, float]:
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
+def rliable_agreement(reps: int) -> str:
+    """Largest gap between policylab's intervals and rliable's stored ones (the test fixture)."""
+    import json
+
+    path = Path(__file__).resolve().parent.parent / "tests" / "stats" / "rliable_reference.json"
+    ref = json.loads(path.read_text())
+    gaps: dict[str, float] = {}
+    for key, aggs in ref["aggregates"].items():
+        ours = pl.stats.summarize(np.array(ref["scores"][key]), reps=reps, seed=0)
+        for name, r in aggs.items():
+            gap = max(abs(ours[name]["low"] - r["low"]), abs(ours[name]["high"] - r["high"]))
+            gaps[name] = max(gaps.get(name, 0.0), gap)
+    poi = ref["probability_of_improvement"]
+    low, high = pl.stats.probability_of_improvement_ci(
+        np.array(ref["scores"][poi["x"]]), np.array(ref["scores"][poi["y"]]), reps=20_000, seed=0
+    )
+    gaps["probability_of_improvement"] = max(abs(low - poi["low"]), abs(high - poi["high"]))
+    made = ref["produced_by"]
+    return (
+        f"Agreement with rliable {made['rliable']} (stored by `tools/rliable_reference.py`, "
+        f"{made['reps']['aggregates']:,} resamples there, {reps:,} here; "
+        f"{len(ref['aggregates'])} score matrices): largest endpoint gap per statistic "
+        + ", ".join(f"{k} {v:.4f}" for k, v in gaps.items())
+        + f". rliable took {made['seconds']} s for its reference run (Python loop per "
+        "resample), on this machine under load (load average about 6)."
+    )
+
+
 def timed(fn, *args, **kwargs) -> tuple[float, tuple[float, float]]:
     t0 = time.perf_counter()
     out = fn(*args, **kwargs)
@@ -101,6 +129,7 @@ def main() -> int:
         "shared with other work, so the seconds are noisy; the ratios between columns of a "
         "row are what to read.\n\n" + "\n".join(rows)
     )
+    body += "\n\n" + rliable_agreement(args.reps)
     print(body)
     if args.write:
         write_section(

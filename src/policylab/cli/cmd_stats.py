@@ -33,6 +33,7 @@ def stats_command(
     dirs: Annotated[
         list[Path],
         typer.Argument(
+            metavar="DIR",
             help="Sweep folders (written by `policylab sweep` or `policylab tune`), one per "
             "task: a configuration found in several is scored over all of them, its runs "
             "matched by seed.",

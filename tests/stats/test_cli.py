@@ -141,3 +141,19 @@ def test_figures_folder_is_checked_before_any_work(
     blocker.write_text("x")
     code, _, err = run(["stats", str(sweeps[0]), "--out", str(blocker)], capsys)
     assert code == 2 and "--out" in err and "is an existing file" in err
+
+
+def test_lower_is_better_sweeps_rank_by_the_lowest_iqm(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    trials = [trial(lab, s, rows[s][0]) for lab, rows in SCORES.items() for s in range(5)]
+    folder = write_sweep(tmp_path / "errors", trials, mode="min", metric="score")
+    code, out, _ = run(["stats", str(folder), "--json", "--no-figures", "--reps", "200"], capsys)
+    doc = json.loads(out)
+    assert code == 0 and doc["mode"] == "min" and doc["best"] == "slow"
+    slow, fast = (np.array(SCORES[k])[:, :1] for k in ("slow", "fast"))
+    assert doc["probability_of_improvement"]["over"]["fast"]["value"] == (
+        probability_of_improvement(-slow, -fast)
+    )
+    assert doc["probability_of_improvement"]["over"]["fast"]["value"] == 1.0
+    assert any("lower 'score' is better" in n for n in doc["notes"])

@@ -10,6 +10,8 @@ with bands). ``--json`` prints one object instead of the table.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -110,21 +112,27 @@ def stats_command(
         notes.append("the sweeps disagree on whether higher scores are better; read as each says")
     sign = -1.0 if mode == "min" else 1.0
 
-    summaries = {
-        label: summarize(m.scores, reps=reps, confidence=confidence, seed=seed, threshold=threshold)
-        for label, m in matrices.items()
-    }
-    order = sorted(summaries, key=lambda lab: -sign * summaries[lab]["iqm"]["value"])
-    best = order[0]
-    improvement: dict[str, dict[str, float]] = {}
-    for label in order[1:]:
-        x, y = sign * matrices[best].scores, sign * matrices[label].scores
-        low, high = probability_of_improvement_ci(x, y, reps=reps, confidence=confidence, seed=seed)
-        improvement[label] = {
-            "value": probability_of_improvement(x, y),
-            "low": low,
-            "high": high,
-        }
+    with _progress(2 * len(matrices) - 1) as advance:
+        summaries = {}
+        for label, m in matrices.items():
+            summaries[label] = summarize(
+                m.scores, reps=reps, confidence=confidence, seed=seed, threshold=threshold
+            )
+            advance()
+        order = sorted(summaries, key=lambda lab: -sign * summaries[lab]["iqm"]["value"])
+        best = order[0]
+        improvement: dict[str, dict[str, float]] = {}
+        for label in order[1:]:
+            x, y = sign * matrices[best].scores, sign * matrices[label].scores
+            low, high = probability_of_improvement_ci(
+                x, y, reps=reps, confidence=confidence, seed=seed
+            )
+            improvement[label] = {
+                "value": probability_of_improvement(x, y),
+                "low": low,
+                "high": high,
+            }
+            advance()
     if mode == "min":
         notes.append(
             f"lower {metric_name!r} is better in these sweeps: the best configuration has the "
@@ -191,6 +199,24 @@ def stats_command(
         console.print(f"wrote {path}", highlight=False, markup=False)
 
 
+@contextlib.contextmanager
+def _progress(total: int) -> Iterator[Callable[[], None]]:
+    """A transient progress bar over the intervals, on a terminal's stderr only."""
+    from rich.progress import Progress
+
+    from policylab.cli.common import err_console
+    from policylab.tabular.common import progress_columns
+
+    if total < 2 or not err_console.is_terminal:
+        yield lambda: None
+        return
+    with Progress(
+        *progress_columns("intervals"), console=err_console, transient=True, expand=True
+    ) as bar:
+        task = bar.add_task("bootstrap", total=total)
+        yield lambda: bar.advance(task)
+
+
 def _print_table(
     sweeps: list[Any],
     metric: str,
@@ -229,7 +255,7 @@ def _print_table(
     for head in ("IQM", "mean", "median", "optimality gap"):
         table.add_column(head, justify="right")
     if improvement:
-        table.add_column(escape(f"P({order[0]} > this)"), justify="right")
+        table.add_column("P(best > this)", justify="right")
     for lab in order:
         row = [lab, str(len(matrices[lab].seeds))]
         if len(tasks) > 1:
@@ -241,6 +267,12 @@ def _print_table(
     table.caption = escape(
         f"value [low, high]: {confidence:.0%} stratified bootstrap percentile intervals "
         f"({reps:,} resamples); median = median over tasks of each task's mean"
+        + (
+            f"; P(best > this): probability that a run of {order[0]} does better than one of "
+            "this configuration on a random task"
+            if improvement
+            else ""
+        )
     )
     emit_table(table)
 

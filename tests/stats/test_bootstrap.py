@@ -200,4 +200,6 @@ def test_bad_statistics() -> None:
         summarize([[1.0], [2.0], [float("-inf")]])
     with pytest.raises(InvalidArgumentError, match="threshold must be a number; got 'x'"):
         bootstrap_ci(np.ones((3, 2)), functools.partial(optimality_gap, threshold="x"))
+    with pytest.raises(InvalidArgumentError, match="statistic optimality_gap failed on a"):
+        bootstrap_ci(np.ones((3, 2)), functools.partial(optimality_gap, thresh=1.0))
     assert pl.stats.bootstrap_ci is bootstrap_ci

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from policylab.exceptions import InvalidArgumentError, NonFiniteError
+from policylab.exceptions import InvalidArgumentError, NonFiniteError, PolicylabError
 from policylab.stats.aggregates import (
     FloatArray,
     _iqm,
@@ -82,8 +82,9 @@ def _kernel(statistic: Any) -> Kernel:
         known = _KERNELS.get(func)
     except TypeError:  # an unhashable callable
         known = None
-    if known is not None:
-        if func is optimality_gap and "threshold" in kwargs:
+    allowed = {"threshold"} if func is optimality_gap else set()
+    if known is not None and set(kwargs) <= allowed:
+        if "threshold" in kwargs:
             kwargs["threshold"] = check_number(kwargs["threshold"], "threshold")
         return functools.partial(known, **kwargs) if kwargs else known
     if not callable(statistic):
@@ -91,12 +92,20 @@ def _kernel(statistic: Any) -> Kernel:
             f"statistic must be a function of a (runs, tasks) score matrix, such as "
             f"policylab.stats.iqm; got {type(statistic).__name__} {statistic!r}"
         )
-    name = getattr(statistic, "__name__", repr(statistic))
+    name = _name(statistic)
 
     def loop(batch: FloatArray) -> FloatArray:
         out = np.empty(batch.shape[0])
         for i, sample in enumerate(batch):
-            value = statistic(sample)
+            try:
+                value = statistic(sample)
+            except PolicylabError:
+                raise
+            except (TypeError, ValueError) as exc:
+                raise InvalidArgumentError(
+                    f"statistic {name} failed on a (runs, tasks) = {sample.shape} score matrix: "
+                    f"{type(exc).__name__}: {exc}"
+                ) from exc
             try:
                 out[i] = float(value)
             except (TypeError, ValueError):
@@ -107,6 +116,12 @@ def _kernel(statistic: Any) -> Kernel:
         return out
 
     return loop
+
+
+def _name(statistic: Any) -> str:
+    """A statistic's name for messages (a partial is named by its function)."""
+    func = statistic.func if isinstance(statistic, functools.partial) else statistic
+    return str(getattr(func, "__name__", type(func).__name__))
 
 
 def _check_confidence(confidence: Any) -> float:
@@ -232,7 +247,7 @@ def bootstrap_ci(
         )
     confidence = _check_confidence(confidence)
     dist = bootstrap_distribution(scores, statistic, reps=reps, seed=seed)
-    _check_finite_distribution(dist, getattr(statistic, "__name__", "the statistic"))
+    _check_finite_distribution(dist, f"statistic {_name(statistic)}")
     lo, hi = _percentile_interval(dist, confidence)
     return float(lo), float(hi)
 

@@ -22,16 +22,15 @@ PROBE_TIMEOUT = 3.0
 
 
 def _quiet_ray_env() -> None:
-    """No usage statistics, no per-trial logger files, no Tune banners: set before importing Ray."""
+    """No usage statistics, no Tune banners, no de-duplicated logs: set before importing Ray."""
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    os.environ.setdefault("TUNE_DISABLE_AUTO_CALLBACK_LOGGERS", "1")
     os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")
     os.environ.setdefault("TUNE_WARN_EXCESSIVE_EXPERIMENT_CHECKPOINT_SYNC_THRESHOLD_S", "1000")
     os.environ.setdefault("RAY_DEDUP_LOGS", "0")
 
 
 def parse_address(address: str) -> tuple[str, int] | None:
-    """``(host, port)`` of a cluster address (``HOST:PORT`` or ``ray://HOST:PORT``); None for ``auto``.
+    """``(host, port)`` of a cluster address (``HOST:PORT``, ``ray://HOST:PORT``); None for auto.
 
     Raises:
         InvalidArgumentError: An address without a host or with a bad port.
@@ -94,8 +93,12 @@ def connect(address: str | None = None, num_cpus: int | None = None) -> bool:
     _quiet_ray_env()
     if address is not None:
         probe_address(address)
+        # something that accepts TCP but is no Ray head is given up on within seconds
+        os.environ.setdefault("RAY_gcs_rpc_server_connect_timeout_s", "5")
+        os.environ.setdefault("RAY_gcs_rpc_server_reconnect_timeout_s", "5")
     import ray
 
+    logging.getLogger("ray.tune").setLevel(logging.WARNING)  # no "wrote the result files" lines
     if ray.is_initialized():
         return False
     kwargs = {"log_to_driver": False, "logging_level": logging.WARNING, "configure_logging": True}

@@ -44,7 +44,8 @@ def finite_problem(name: str, gamma: float | None = None) -> FiniteMDP:
             env = gym.make(name)
         except Exception as e:  # gymnasium raises its own error types for unknown ids
             raise UnknownProblemError(
-                unknown_problem_message(name, _GYM_HINT) + f" (Gymnasium: {' '.join(str(e).split())})"
+                unknown_problem_message(name, _GYM_HINT)
+                + f" (Gymnasium: {' '.join(str(e).split())})"
             ) from None
         if getattr(env.unwrapped, "P", None) is None:
             raise UnknownProblemError(
@@ -95,9 +96,13 @@ def check_problem(spec: ExperimentSpec) -> None:
         InvalidArgumentError: A bad option value (checked by building one configuration).
     """
     if spec.family == "tabular":
-        mdp = finite_problem(spec.problem, spec.fixed.get("gamma"))
-        for config in spec.configurations():
-            named_policy(spec.problem, mdp, spec.settings(config).get("policy"))
+        from policylab.experiments.trials import tabular_kwargs
+        from policylab.tabular.registry import algorithm
+
+        learner = algorithm(spec.algorithm).learner
+        for config in _corners(spec):  # one episode of each: the learner checks its values
+            mdp, kwargs = tabular_kwargs(spec, config)
+            learner(mdp, **{**kwargs, "seed": 0, "episodes": 1, "progress": False})
         return
     from policylab.deep.common.config import config_from_dict
     from policylab.deep.common.envs import check_env_id
@@ -108,10 +113,26 @@ def check_problem(spec: ExperimentSpec) -> None:
     except InvalidArgumentError as e:
         raise UnknownProblemError(str(e)) from None
     cls = ALGORITHMS[spec.algorithm].config_class
-    for config in spec.configurations():
+    for config in _corners(spec):
         fields = deep_fields(spec, config)
         fields.pop("steps", None)
         config_from_dict(cls, fields)
+
+
+def _corners(spec: ExperimentSpec) -> list[dict[str, Any]]:
+    """Configurations to check before running: every grid point, or each search bound."""
+    if spec.command == "sweep":
+        return spec.configurations()
+    ends: list[dict[str, Any]] = []
+    for side in (0, 1):
+        config = {}
+        for k, d in spec.space.items():
+            config[k] = d["values"][-side] if d["kind"] == "choice" else (d["low"], d["high"])[side]
+        ends.append(config)
+    for k, d in spec.space.items():  # every choice once
+        if d["kind"] == "choice":
+            ends.extend({**ends[0], k: v} for v in d["values"])
+    return ends
 
 
 def deep_fields(spec: ExperimentSpec, config: dict[str, Any], seed: int = 0) -> dict[str, Any]:

@@ -31,7 +31,15 @@ from policylab.experiments.spec import ExperimentSpec
 from policylab.experiments.trials import CHECKPOINT_FILES, run_deep, run_tabular
 from policylab.runs import atomic_write_bytes
 
-__all__ = ["RESULT_JSON", "deep_trainable", "swept_config", "tabular_trainable", "trial_seeds"]
+__all__ = [
+    "RESULT_JSON",
+    "deep_trainable",
+    "for_tune",
+    "per_seed",
+    "swept_config",
+    "tabular_trainable",
+    "trial_seeds",
+]
 
 RESULT_JSON = "result.json"
 
@@ -88,6 +96,25 @@ def _replay(folder: Path) -> dict[str, Any] | None:
     return doc if isinstance(doc, dict) else None
 
 
+def for_tune(result: dict[str, Any]) -> dict[str, Any]:
+    """A result as reported to Tune: scalars, and the per-seed part as one JSON string.
+
+    (Tune's loggers take scalars; a string passes through them untouched.)
+    """
+    return {**result, "per_seed": json.dumps(result.get("per_seed", []))}
+
+
+def per_seed(result: dict[str, Any]) -> list[dict[str, Any]]:
+    """The per-seed part of a result, reported (a JSON string) or kept (a list)."""
+    got = result.get("per_seed", [])
+    if isinstance(got, str):
+        try:
+            got = json.loads(got)
+        except json.JSONDecodeError:
+            return []
+    return got if isinstance(got, list) else []
+
+
 def tabular_trainable(config: dict[str, Any]) -> None:
     """A Tune trial: one tabular configuration, all its seeds in one call."""
     from ray import tune
@@ -95,9 +122,12 @@ def tabular_trainable(config: dict[str, Any]) -> None:
     spec, folder, hooks = _context(config)
     result = _replay(folder)
     if result is None:
-        result = {**run_tabular(spec, swept_config(spec, config), trial_seeds(spec, config)), **_node()}
+        result = {
+            **run_tabular(spec, swept_config(spec, config), trial_seeds(spec, config), folder),
+            **_node(),
+        }
         _finish(folder, result, hooks)
-    tune.report(result)
+    tune.report(for_tune(result))
 
 
 def deep_trainable(config: dict[str, Any]) -> None:
@@ -107,7 +137,7 @@ def deep_trainable(config: dict[str, Any]) -> None:
     spec, folder, hooks = _context(config)
     kept = _replay(folder)
     if kept is not None:
-        tune.report(kept)
+        tune.report(for_tune(kept))
         return
     seeds = trial_seeds(spec, config)
     checkpoint = tune.get_checkpoint()
@@ -130,10 +160,10 @@ def deep_trainable(config: dict[str, Any]) -> None:
                     src = folder / f"seed-{seed}" / name
                     if src.is_file():
                         shutil.copyfile(src, Path(tmp) / f"seed-{seed}" / name)
-            tune.report(result, checkpoint=tune.Checkpoint.from_directory(tmp))
+            tune.report(for_tune(result), checkpoint=tune.Checkpoint.from_directory(tmp))
         crash = hooks.get("crash_once")
         if crash and not result["finished"] and not Path(crash).exists():
-            Path(crash).write_text("crashed once\n")
+            Path(crash).write_text(folder.name + "\n")
             os._exit(3)  # the worker dies as a killed or lost node would
 
     run_deep(spec, swept_config(spec, config), seeds, folder, on_segment)

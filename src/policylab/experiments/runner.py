@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from policylab.exceptions import RunFolderError
-from policylab.experiments.ray_trials import swept_config, trial_seeds
+from policylab.experiments.ray_trials import per_seed, swept_config, trial_seeds
 from policylab.experiments.spec import ExperimentSpec, build_spec, config_label
 from policylab.runs import LOCK_FILE, RunFolder
 
@@ -50,10 +50,10 @@ def trial_entries(
     """The sweep.json entries of one Tune trial: one per seed it runs."""
     swept = swept_config(spec, config)
     seeds = trial_seeds(spec, config)
-    per_seed = {p["seed"]: p for p in (result or {}).get("per_seed", [])}
+    by_seed = {p["seed"]: p for p in per_seed(result or {})}
     entries = []
     for seed in seeds:
-        got = per_seed.get(seed, {})
+        got = by_seed.get(seed, {})
         entries.append(
             {
                 "trial_id": trial_id if len(seeds) == 1 else f"{trial_id}-s{seed}",
@@ -83,9 +83,11 @@ def statistics(trials: list[dict[str, Any]], metric: str = "score") -> dict[str,
         score = t["metrics"].get(metric)
         if t["status"] == "TERMINATED" and score is not None and np.isfinite(score):
             groups.setdefault(t["config_label"], []).append(float(score))
-    try:
-        from policylab.stats import summarize
-    except ImportError:
+    import importlib
+
+    try:  # the statistics layer (numpy/scipy only)
+        summarize = importlib.import_module("policylab.stats").summarize
+    except (ImportError, AttributeError):
         summarize = None
     out: dict[str, Any] = {}
     for label, scores in groups.items():
@@ -178,7 +180,7 @@ _DISPLAY: dict[str, Any] = {}
 def _make_callback(record: SweepRecord) -> Any:
     from ray.tune import Callback
 
-    class SweepCallback(Callback):  # type: ignore[misc]
+    class SweepCallback(Callback):
         """Rewrites sweep.json and the live table as trials start, report and end."""
 
         def __init__(self, out: str, spec: dict[str, Any]) -> None:
@@ -196,7 +198,9 @@ def _make_callback(record: SweepRecord) -> Any:
             if live is not None:
                 live.update(_table(rec))
 
-        def on_trial_start(self, iteration: int, trials: list[Any], trial: Any, **info: Any) -> None:
+        def on_trial_start(
+            self, iteration: int, trials: list[Any], trial: Any, **info: Any
+        ) -> None:
             self._note(trial, "RUNNING")
 
         def on_trial_result(
@@ -209,7 +213,9 @@ def _make_callback(record: SweepRecord) -> Any:
         ) -> None:
             self._note(trial, "TERMINATED", trial.last_result or None)
 
-        def on_trial_error(self, iteration: int, trials: list[Any], trial: Any, **info: Any) -> None:
+        def on_trial_error(
+            self, iteration: int, trials: list[Any], trial: Any, **info: Any
+        ) -> None:
             self._note(trial, "ERROR")
 
     _DISPLAY["record"] = record
@@ -301,7 +307,7 @@ def _tune_config(spec: ExperimentSpec) -> Any:
     elif spec.scheduler == "median":
         scheduler = MedianStoppingRule(metric=spec.metric, mode="max", grace_period=1)
     else:
-        scheduler = FIFOScheduler()
+        scheduler = FIFOScheduler()  # type: ignore[no-untyped-call]
     return tune.TuneConfig(
         search_alg=searcher, scheduler=scheduler, num_samples=spec.trials, reuse_actors=False
     )
@@ -362,42 +368,67 @@ def run_experiment(
         RunFolderError: The folder is in use, not empty (new), or holds no sweep (resume).
         InvalidArgumentError: An unreachable address.
     """
-    from policylab.experiments.cluster import connect
+    from policylab.experiments.cluster import connect, probe_address
 
     out_path = Path(out)
+    if address is not None:  # an unreachable cluster is refused before the folder is touched
+        probe_address(address)
     folder = _open_folder(out_path, resume, f"policylab {spec.command if spec else 'sweep'}")
     try:
-        if resume:
+        exp: ExperimentSpec
+        if resume or spec is None:
             doc = _read_sweep(folder)
-            spec = ExperimentSpec.from_json(doc["spec"])
-            record = SweepRecord(out_path, spec, doc.get("created"))
+            exp = ExperimentSpec.from_json(doc["spec"])
+            record = SweepRecord(out_path, exp, doc.get("created"))
             record.load(doc)
         else:
-            assert spec is not None  # noqa: S101 - the public functions pass one
-            record = SweepRecord(out_path, spec)
-            for i, config in enumerate(_pending(spec)):
+            exp = spec
+        started = connect(address, num_cpus)
+        if not resume:
+            record = SweepRecord(out_path, exp)
+            for i, config in enumerate(_pending(exp)):
                 record.update(f"pending-{i}", config, "PENDING", None)
             record.write()
             record.trials.clear()
-        started = connect(address, num_cpus)
         try:
-            grid = _fit(spec, out_path, record, resume, progress)
+            grid = _fit(exp, out_path, record, resume, progress)
         finally:
             if started:
                 import ray
 
                 ray.shutdown()
-        final = SweepRecord(out_path, spec, record.created)
+        final = SweepRecord(out_path, exp, record.created)
         for r in grid:
-            metrics = dict(r.metrics or {})
-            tid = metrics.get("trial_id") or Path(str(r.path)).name
+            tid = str((r.metrics or {}).get("trial_id") or _trial_id(r))
             status = "ERROR" if r.error is not None else "TERMINATED"
-            final.update(str(tid), r.config, status, metrics if metrics.get("per_seed") else None)
-            if not metrics.get("per_seed"):
-                final.trials[str(tid)] = trial_entries(spec, str(tid), r.config, status, None)
+            result = _kept_result(out_path, tid) or (
+                r.metrics if (r.metrics or {}).get("per_seed") else None
+            )
+            if result is None and tid in record.trials:  # an errored trial: its last report
+                final.trials[tid] = [{**t, "status": status} for t in record.trials[tid]]
+            else:
+                final.trials[tid] = trial_entries(exp, tid, r.config, status, result)
         return final.write()
     finally:
         folder.close()
+
+
+def _trial_id(result: Any) -> str:
+    """A Tune result's trial id (from its folder name ``NAME_TRIALID_INDEX_...``)."""
+    parts = Path(str(result.path)).name.split("_")
+    return "_".join(parts[2:4]) if len(parts) > 3 else Path(str(result.path)).name
+
+
+def _kept_result(out: Path, trial_id: str) -> dict[str, Any] | None:
+    """The final result a trial kept in its folder, if it finished."""
+    from policylab.experiments.ray_trials import RESULT_JSON
+
+    path = out / "trials" / trial_id / RESULT_JSON
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    return doc if isinstance(doc, dict) else None
 
 
 def _pending(spec: ExperimentSpec) -> list[dict[str, Any]]:
@@ -410,9 +441,7 @@ def _pending(spec: ExperimentSpec) -> list[dict[str, Any]]:
     return configs
 
 
-def _fit(
-    spec: ExperimentSpec, out: Path, record: SweepRecord, resume: bool, progress: bool
-) -> Any:
+def _fit(spec: ExperimentSpec, out: Path, record: SweepRecord, resume: bool, progress: bool) -> Any:
     import contextlib
 
     from ray import tune
@@ -597,4 +626,6 @@ def resume(
     Raises:
         RunFolderError: The folder holds no sweep, or is in use.
     """
-    return run_experiment(None, out, resume=True, address=address, num_cpus=num_cpus, progress=progress)
+    return run_experiment(
+        None, out, resume=True, address=address, num_cpus=num_cpus, progress=progress
+    )

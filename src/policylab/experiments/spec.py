@@ -145,6 +145,8 @@ def parse_option_tokens(algorithm: str, tokens: list[str]) -> dict[str, Any]:
     while i < len(tokens):
         tok = tokens[i]
         flag, eq, inline = tok.partition("=")
+        if flag == "--seed":
+            raise InvalidArgumentError("the seeds of a sweep are set by --seeds N (seeds 0..N-1)")
         if flag not in known:
             what = "option" if tok.startswith("-") else "argument"
             raise InvalidArgumentError(
@@ -309,7 +311,9 @@ class ExperimentSpec:
     def configurations(self) -> list[dict[str, Any]]:
         """Every combination of the grid's values, in order (one empty config if no grid)."""
         keys = list(self.grid)
-        return [dict(zip(keys, vals, strict=True)) for vals in itertools.product(*self.grid.values())]
+        return [
+            dict(zip(keys, vals, strict=True)) for vals in itertools.product(*self.grid.values())
+        ]
 
     def settings(self, config: dict[str, Any]) -> dict[str, Any]:
         """The fixed options with one configuration's values over them."""

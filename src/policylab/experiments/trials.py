@@ -22,6 +22,7 @@ wraps them as Ray Tune function trainables.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import shutil
@@ -36,8 +37,17 @@ from policylab.experiments.problems import deep_fields, finite_problem, ground_t
 from policylab.experiments.spec import ExperimentSpec
 from policylab.runs import CHECKPOINT, RUN_JSON, atomic_write_bytes
 
-__all__ = ["CURVE_JSON", "last_share_mean", "run_deep", "run_tabular", "tabular_kwargs"]
+__all__ = [
+    "CURVE_JSON",
+    "TABLES_NPZ",
+    "last_share_mean",
+    "run_deep",
+    "run_tabular",
+    "tabular_kwargs",
+]
 
+TABLES_NPZ = "tables.npz"
+"""A tabular trial's learned tables and returns, per seed."""
 CURVE_JSON = "curve.json"
 """Per-seed learning curve of a deep run (steps, recent return), kept beside its checkpoint."""
 
@@ -117,8 +127,14 @@ def _seed_runs(
     )
 
 
-def run_tabular(spec: ExperimentSpec, config: dict[str, Any], seeds: list[int]) -> dict[str, Any]:
+def run_tabular(
+    spec: ExperimentSpec, config: dict[str, Any], seeds: list[int], folder: Path | None = None
+) -> dict[str, Any]:
     """One tabular configuration over ``seeds``: the trial's result (JSON-ready).
+
+    With ``folder``, the learned tables and every episode's return are kept there in
+    ``tables.npz`` (arrays ``seeds`` (R,), ``q`` (R, S, A), ``v`` (R, S), ``returns``
+    (R, episodes)), written atomically.
 
     Returns:
         ``{"score": mean over seeds, "per_seed": [{"seed", "metrics", "curve"}, ...]}``.
@@ -128,10 +144,17 @@ def run_tabular(spec: ExperimentSpec, config: dict[str, Any], seeds: list[int]) 
     """
     mdp, kwargs = tabular_kwargs(spec, config)
     returns, q, v = _seed_runs(spec.algorithm, mdp, seeds, kwargs)
+    if folder is not None:
+        import io
+
+        buf = io.BytesIO()
+        np.savez_compressed(buf, seeds=np.asarray(seeds), q=q, v=v, returns=returns)
+        atomic_write_bytes(folder / TABLES_NPZ, buf.getvalue())
     truth = ground_truth(spec.algorithm, mdp, kwargs.get("policy"))
     episodes = returns.shape[1]
     edges = np.unique(np.linspace(0, episodes, min(CURVE_POINTS, episodes) + 1).round().astype(int))
-    per_seed = []
+    per_seed: list[dict[str, Any]] = []
+    scores: list[float] = []
     for r, seed in enumerate(seeds):
         e_max, e_rms, share = truth.errors(q[r], v[r])
         metrics = {
@@ -143,13 +166,14 @@ def run_tabular(spec: ExperimentSpec, config: dict[str, Any], seeds: list[int]) 
         metrics["score"] = -e_rms if spec.command == "tune" else metrics["return_last10"]
         curve = {
             "x": [int(b) for b in edges[1:]],
-            "y": [float(returns[r, a:b].mean()) for a, b in zip(edges[:-1], edges[1:], strict=True)],
+            "y": [float(returns[r, a:b].mean()) for a, b in itertools.pairwise(edges)],
             "x_label": "episode",
             "y_label": "mean return of the episodes up to x since the previous point",
         }
         per_seed.append({"seed": int(seed), "metrics": _finite(metrics), "curve": curve})
+        scores.append(metrics["score"])
     return {
-        "score": float(np.mean([p["metrics"]["score"] for p in per_seed])),
+        "score": float(np.mean(scores)),
         "per_seed": per_seed,
     }
 
@@ -158,7 +182,9 @@ def metric_description(spec: ExperimentSpec) -> str:
     """What ``score`` means for this experiment."""
     if spec.family == "deep":
         return "mean return of the last 100 training episodes"
-    truth = ground_truth(spec.algorithm, finite_problem(spec.problem, spec.fixed.get("gamma")), None)
+    truth = ground_truth(
+        spec.algorithm, finite_problem(spec.problem, spec.fixed.get("gamma")), None
+    )
     if spec.command == "tune":
         return f"minus the RMS error of the learned values against the exact {truth.target}"
     return "mean return of the last 10% of episodes"
@@ -213,7 +239,7 @@ def run_deep(
                 agent = cls(spec.problem, config=cfg)
                 curve = _curve()
             boundary = min(total, (agent.num_timesteps // every + 1) * every)
-            agent.learn(total, callback=lambda a, m, b=boundary: a.num_timesteps < b, run_dir=run_dir)
+            agent.learn(total, callback=_until(boundary), run_dir=run_dir)
             recent = agent.recent_mean_return()
             curve["x"].append(int(agent.num_timesteps))
             curve["y"].append(None if recent is None else float(recent))
@@ -233,6 +259,15 @@ def run_deep(
         if on_segment is not None:
             on_segment(result)
     return result
+
+
+def _until(step: int) -> Callable[[Any, dict[str, float]], bool]:
+    """A training callback that stops the segment once the agent has reached ``step``."""
+
+    def keep_going(agent: Any, metrics: dict[str, float]) -> bool:
+        return bool(agent.num_timesteps < step)
+
+    return keep_going
 
 
 def _curve() -> dict[str, Any]:

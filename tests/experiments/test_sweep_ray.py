@@ -147,7 +147,7 @@ def test_a_deep_trial_whose_worker_dies_resumes_and_ends_equal(tmp_path, monkeyp
 def test_a_killed_driver_is_resumed_and_runs_every_trial_once(tmp_path):
     out = tmp_path / "killed"
     trace = tmp_path / "trace.txt"
-    alphas = ["0.1", "0.2", "0.3", "0.4", "0.5", "0.6"]
+    alphas = ["0.1", "0.2", "0.3", "0.4", "0.5"]
     env = {**os.environ, "POLICYLAB_SWEEP_TRACE": str(trace), "RAY_USAGE_STATS_ENABLED": "0"}
     cmd = [
         sys.executable, "-m", "policylab", "sweep", "q-learning", "CliffWalking-v1",
@@ -161,7 +161,7 @@ def test_a_killed_driver_is_resumed_and_runs_every_trial_once(tmp_path):
     try:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline and proc.poll() is None:
-            if trace.is_file() and len(trace.read_text().split()) >= 2:
+            if trace.is_file() and trace.read_text().split():
                 break
             time.sleep(0.2)
         assert proc.poll() is None, "the sweep ended before it could be killed"

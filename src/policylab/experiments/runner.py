@@ -296,7 +296,8 @@ def _tune_config(spec: ExperimentSpec) -> Any:
     from ray import tune
 
     if spec.command == "sweep":
-        return tune.TuneConfig(num_samples=1, reuse_actors=False)
+        # tabular trials take milliseconds: a worker process serves one trial after another
+        return tune.TuneConfig(num_samples=1, reuse_actors=spec.family == "tabular")
     from ray.tune.schedulers import ASHAScheduler, FIFOScheduler, MedianStoppingRule
     from ray.tune.search.optuna import OptunaSearch
 
@@ -309,7 +310,10 @@ def _tune_config(spec: ExperimentSpec) -> Any:
     else:
         scheduler = FIFOScheduler()  # type: ignore[no-untyped-call]
     return tune.TuneConfig(
-        search_alg=searcher, scheduler=scheduler, num_samples=spec.trials, reuse_actors=False
+        search_alg=searcher,
+        scheduler=scheduler,
+        num_samples=spec.trials,
+        reuse_actors=spec.family == "tabular",
     )
 
 

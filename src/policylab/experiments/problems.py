@@ -17,7 +17,13 @@ if TYPE_CHECKING:
     from policylab.mdp.finite import FiniteMDP
     from policylab.tabular.truth import GroundTruth
 
-__all__ = ["check_problem", "finite_problem", "ground_truth", "named_policy"]
+__all__ = [
+    "check_problem",
+    "finite_problem",
+    "ground_truth",
+    "named_policy",
+    "reachable_states",
+]
 
 _GYM_HINT = ", or a Gymnasium id with a model `P` (FrozenLake-v1, CliffWalking-v1, Taxi-v4)"
 
@@ -86,6 +92,30 @@ def ground_truth(algorithm: str, mdp: FiniteMDP, policy: Any) -> GroundTruth:
     if get_algorithm(algorithm).kind == "control":
         return GroundTruth.control(mdp)
     return GroundTruth.prediction(mdp, policy, on="v")
+
+
+def reachable_states(mdp: FiniteMDP) -> Any:
+    """(S,) mask of the states reachable from the start distribution under some policy.
+
+    States no episode can visit (CliffWalking's cliff cells, say) keep a learner's
+    initial values forever; scoring a learner on them would only add a constant.
+    """
+    import numpy as np
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import breadth_first_order
+
+    S, A = mdp.n_states, mdp.n_actions
+    pick = sp.csr_array(
+        (np.ones(S * A), (np.repeat(np.arange(S), A), np.arange(S * A))), shape=(S, S * A)
+    )
+    graph = (pick @ mdp.transition_matrix).tocsr()
+    seen = np.zeros(S, dtype=bool)
+    for s in np.flatnonzero(np.asarray(mdp.initial) > 0):
+        if not seen[s]:
+            seen[breadth_first_order(graph, int(s), directed=True, return_predecessors=False)] = (
+                True
+            )
+    return seen
 
 
 def check_problem(spec: ExperimentSpec) -> None:

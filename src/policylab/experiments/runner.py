@@ -268,7 +268,7 @@ def _param_space(spec: ExperimentSpec, out: Path) -> dict[str, Any]:
     if spec.command == "sweep":
         for k, values in spec.grid.items():
             space[k] = tune.grid_search(values)
-        if spec.family == "deep":  # one trial per (configuration, seed)
+        if spec.trial_per_seed:  # one trial per (configuration, seed): always for deep
             space["_seed"] = tune.grid_search(spec.seeds)
         return space
     for k, d in spec.space.items():
@@ -440,7 +440,7 @@ def _pending(spec: ExperimentSpec) -> list[dict[str, Any]]:
     if spec.command == "tune":
         return []
     configs = spec.configurations()
-    if spec.family == "deep":
+    if spec.trial_per_seed:
         return [{**c, "_seed": s} for c in configs for s in spec.seeds]
     return configs
 
@@ -497,6 +497,7 @@ def sweep(
     num_cpus: int | None = None,
     max_failures: int = 2,
     progress: bool = False,
+    trial_per_seed: bool = False,
 ) -> dict[str, Any]:
     """Run an algorithm on a problem for every configuration of a grid and every seed.
 
@@ -518,6 +519,9 @@ def sweep(
         num_cpus: CPUs of the local Ray (default: all).
         max_failures: Retries of a trial whose worker died.
         progress: Show the live table.
+        trial_per_seed: Make every (configuration, seed) of a tabular algorithm its own
+            trial too (slower: a trial costs far more than a tabular run; it is how the
+            Ray overhead per trial is measured).
 
     Returns:
         The sweep.json object (``trials``, ``statistics``, ...).
@@ -537,6 +541,7 @@ def sweep(
         options=options,
         set_values=grid,
         max_failures=max_failures,
+        trial_per_seed=trial_per_seed,
     )
     spec.metric_description = metric_description(spec)
     return run_experiment(spec, out, address=address, num_cpus=num_cpus, progress=progress)

@@ -275,6 +275,9 @@ class ExperimentSpec:
         metric: The name of the score trials are compared by (always ``"score"``).
         metric_description: What the score is.
         search_seed: Seed of the search (the sampler of ``tune``).
+        trial_per_seed: Whether every (configuration, seed) of a sweep is its own trial
+            (always for deep algorithms; for tabular ones all seeds of a configuration
+            share one trial unless this is set).
     """
 
     command: Literal["sweep", "tune"]
@@ -291,6 +294,7 @@ class ExperimentSpec:
     metric: str = "score"
     metric_description: str = ""
     search_seed: int = 0
+    trial_per_seed: bool = False
 
     def to_json(self) -> dict[str, Any]:
         """The spec as a JSON object."""
@@ -333,6 +337,7 @@ def build_spec(
     scheduler: str = "asha",
     max_failures: int = 2,
     search_seed: int = 0,
+    trial_per_seed: bool = False,
 ) -> ExperimentSpec:
     """A checked :class:`ExperimentSpec`: every option, key and value is validated here.
 
@@ -389,6 +394,7 @@ def build_spec(
         scheduler=scheduler,
         max_failures=check_count(max_failures, "max_failures", minimum=0),
         search_seed=search_seed,
+        trial_per_seed=bool(trial_per_seed) or (family == "deep" and command == "sweep"),
     )
     check_problem(spec)
     return spec

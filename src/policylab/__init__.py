@@ -9,7 +9,7 @@ The public names of the core live here::
 
 # First: policylab's compiled kernels are cached in a folder keyed by their source.
 from policylab import _numba_cache as _numba_cache
-from policylab import problems
+from policylab import problems, stats
 from policylab.envs import Episode, MDPEnv, register_envs, rollout
 from policylab.exceptions import (
     CheckpointError,
@@ -77,6 +77,7 @@ __all__ = [
     "relative_value_iteration",
     "returns_to_go",
     "rollout",
+    "stats",
     "value_iteration",
 ]
 

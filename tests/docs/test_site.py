@@ -120,6 +120,12 @@ def test_api_reference_documents_the_public_names(site: tuple[Path, str]) -> Non
             "policylab.games.selfplay_td.TDPlayer",
         ],
         "exceptions": ["policylab.exceptions.InvalidMDPError"],
+        "stats": [
+            "policylab.stats.iqm",
+            "policylab.stats.bootstrap_ci",
+            "policylab.stats.summarize",
+            "policylab.stats.read_sweep",
+        ],
     }
     for page, names in expect.items():
         text = (api / page / "index.html").read_text(encoding="utf-8")

@@ -20,7 +20,10 @@ and the figures themselves, each returning a :class:`matplotlib.figure.Figure`:
 - :func:`blackjack_figure`: Figure 5.2's layout;
 - :func:`learning_figure`: error and return curves, mean and bootstrap band;
 - :func:`episode_figure`: one episode's path on the grid (notes' figures 7, 8);
-- :func:`interaction_loop_figure`: the agent-environment loop (notes' figure 1).
+- :func:`interaction_loop_figure`: the agent-environment loop (notes' figure 1);
+- :func:`aggregate_intervals_figure`, :func:`performance_profile_figure`,
+  :func:`run_curves_figure`: statistics over runs and tasks (IQM and its interval,
+  performance profiles, learning curves with bands).
 """
 
 from __future__ import annotations
@@ -47,6 +50,12 @@ from policylab.plot.learning import (
     learning_figure,
     moving_average,
 )
+from policylab.plot.scores import (
+    aggregate_intervals_figure,
+    align_curves,
+    performance_profile_figure,
+    run_curves_figure,
+)
 from policylab.plot.states import (
     MAX_TABLE_STATES,
     blackjack_figure,
@@ -67,6 +76,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "LearningCurves",
+    "aggregate_intervals_figure",
+    "align_curves",
     "blackjack_figure",
     "bootstrap_ci",
     "draw_grid_policy",
@@ -83,8 +94,10 @@ __all__ = [
     "learning_figure",
     "line_figure",
     "moving_average",
+    "performance_profile_figure",
     "policy_map_figure",
     "q_table_figure",
+    "run_curves_figure",
     "save_figure",
     "save_learning_figure",
     "save_solution_figure",

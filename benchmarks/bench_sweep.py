@@ -188,13 +188,13 @@ def tuning(tmp: Path) -> str:
         ("defaults (alpha 0.1, epsilon 0.1)", "-", rescore(0.1, 0.1), "-"),
         (
             f"TPE, 16 trials: {best['config_label']}",
-            f"{best['score']:.3f}",
+            f"{best['score']:.4f}",
             rescore(best["config"]["alpha"], best["config"]["epsilon"]),
             f"{tune_s:.0f}",
         ),
         (
             f"grid 4 x 4: {grid_best}",
-            f"{np.mean(by[grid_best]):.3f}",
+            f"{np.mean(by[grid_best]):.4f}",
             rescore(cfg[grid_best]["alpha"], cfg[grid_best]["epsilon"]),
             f"{grid_s:.0f}",
         ),
@@ -205,7 +205,7 @@ def tuning(tmp: Path) -> str:
         "Search score: mean over the 4 seeds the search used; fresh: mean over 16 other "
         "seeds (100..115).\n\n"
         "| configuration | search score | fresh-seed score | seconds |\n|---|---:|---:|---:|\n"
-        + "\n".join(f"| {a} | {b} | {c:.3f} | {d} |" for a, b, c, d in rows)
+        + "\n".join(f"| {a} | {b} | {c:.4f} | {d} |" for a, b, c, d in rows)
         + f"\n\nLoad: `{load()}`"
     )
     print(body)

@@ -80,7 +80,18 @@ def test_tabular_sweep_is_bit_identical_to_sequential_learn_runs(tmp_path, capsy
     on_disk = json.loads((out / "sweep.json").read_text())
     assert on_disk["trials"] == trials
     assert set(on_disk["statistics"]) == {"default"}
-    assert on_disk["statistics"]["default"]["runs"] == 4
+    stat = on_disk["statistics"]["default"]
+    scores = np.array([t["metrics"]["score"] for t in trials])
+    assert stat["runs"] == 4 and stat["mean"]["value"] == pytest.approx(scores.mean())
+    assert stat["iqm"]["low"] <= stat["iqm"]["value"] <= stat["iqm"]["high"]
+    # `policylab stats` reads the folder: the same aggregates from the same seeds
+    with pytest.raises(SystemExit) as exc:
+        main(["stats", str(out), "--json", "--out", str(tmp_path / "figures")])
+        raise SystemExit(0)
+    assert exc.value.code in (0, None)
+    got = json.loads(capsys.readouterr().out)["configs"]["default"]
+    assert got["seeds"] == [0, 1, 2, 3]
+    assert got["iqm"]["value"] == pytest.approx(stat["iqm"]["value"])
 
 
 def test_tune_scores_against_the_exact_q_star(tmp_path):

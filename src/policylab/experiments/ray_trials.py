@@ -15,7 +15,8 @@ tuned values. A trial keeps its files in ``OUT/trials/TRIAL_ID/``:
 Test hooks (set by the driver from environment variables, never by a user flag):
 ``crash_once`` (a path: a deep trial whose path does not exist yet creates it and kills
 its own worker right after its first checkpoint) and ``trace`` (a path: every trial
-appends its id there when it has computed its result).
+appends its id there when it has computed its result) and ``delay`` (seconds a trial
+waits before it computes, so that a test can stop the driver between two trials).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import json
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
@@ -122,6 +124,7 @@ def tabular_trainable(config: dict[str, Any]) -> None:
     spec, folder, hooks = _context(config)
     result = _replay(folder)
     if result is None:
+        time.sleep(float(hooks.get("delay", 0)))
         result = {
             **run_tabular(spec, swept_config(spec, config), trial_seeds(spec, config), folder),
             **_node(),

@@ -36,7 +36,11 @@ KIND = "policylab-sweep"
 VERSION = 1
 
 #: Environment variables of the test hooks (see :mod:`policylab.experiments.ray_trials`).
-HOOK_ENV = {"crash_once": "POLICYLAB_SWEEP_CRASH_ONCE", "trace": "POLICYLAB_SWEEP_TRACE"}
+HOOK_ENV = {
+    "crash_once": "POLICYLAB_SWEEP_CRASH_ONCE",
+    "trace": "POLICYLAB_SWEEP_TRACE",
+    "delay": "POLICYLAB_SWEEP_TRIAL_DELAY",
+}
 
 
 # ------------------------------------------------------------------ sweep.json

@@ -69,6 +69,44 @@ _TUNE_HELP = (
 )
 
 
+#: Arguments and options that ``sweep`` and ``tune`` share.
+Algorithm = Annotated[
+    str | None,
+    typer.Argument(help="Algorithm: a tabular one (q-learning, sarsa, ...) or ppo, dqn, sac, td3."),
+]
+Problem = Annotated[
+    str | None,
+    typer.Argument(
+        help="Problem: a built-in name or a Gymnasium id with a model P (tabular), a "
+        "Gymnasium id (deep)."
+    ),
+]
+Address = Annotated[
+    str | None,
+    typer.Option("--address", help="Join the Ray cluster at HOST:PORT (default: a local Ray)."),
+]
+NumCpus = Annotated[
+    int | None, typer.Option("--num-cpus", help="CPUs of the local Ray (default: all).")
+]
+MaxFailures = Annotated[
+    int, typer.Option("--max-failures", help="Retries of a trial whose worker dies.")
+]
+Resume = Annotated[
+    Path | None,
+    typer.Option(
+        "--resume", help="Continue the experiment in this folder (after a kill or a stop)."
+    ),
+]
+AsJson = Annotated[
+    bool,
+    typer.Option(
+        "--json",
+        help="Print one JSON object: sweep.json's content (trials, statistics; best for tune) "
+        "and out.",
+    ),
+]
+
+
 def _default_out(command: str, algorithm: str, problem: str) -> Path:
     return Path("sweeps") / f"{command}-{algorithm}-{problem.replace('/', '_')}"
 
@@ -93,6 +131,50 @@ def _need(algorithm: str | None, problem: str | None, command: str) -> tuple[str
             "...), or --resume DIR"
         )
     return algorithm, problem
+
+
+def _resumed(
+    ctx: typer.Context,
+    algorithm: str | None,
+    problem: str | None,
+    resume: Path | None,
+    address: str | None,
+    num_cpus: int | None,
+    as_json: bool,
+    **given: Any,
+) -> bool:
+    """Continue the experiment in ``resume`` if given (and say so); False for a new one."""
+    from policylab.experiments import resume as resume_experiment
+
+    if num_cpus is not None:
+        check_count(num_cpus, "--num-cpus")
+    if resume is None:
+        return False
+    _check_resume_args(algorithm, problem, list(ctx.args), **given)
+    doc = resume_experiment(resume, address=address, num_cpus=num_cpus, progress=not as_json)
+    _finish(doc, resume, as_json)
+    return True
+
+
+def _prepare(
+    ctx: typer.Context,
+    command: str,
+    algorithm: str | None,
+    problem: str | None,
+    seeds: int,
+    max_failures: int,
+    out: Path | None,
+) -> tuple[str, str, dict[str, Any], Path]:
+    """(algorithm, problem, its own options, the sweep folder) of a new experiment, checked."""
+    from policylab.experiments import parse_option_tokens
+
+    algorithm, problem = _need(algorithm, problem, command)
+    check_count(seeds, "--seeds")
+    check_count(max_failures, "--max-failures", minimum=0)
+    options = parse_option_tokens(algorithm, list(ctx.args))
+    target = out or _default_out(command, algorithm.lower(), problem)
+    check_output_dir(target, "--out")
+    return algorithm, problem, options, target
 
 
 def _show(doc: dict[str, Any], out: Path) -> None:
@@ -155,19 +237,8 @@ def _finish(doc: dict[str, Any], out: Path, as_json: bool) -> None:
 
 def sweep_command(
     ctx: typer.Context,
-    algorithm: Annotated[
-        str | None,
-        typer.Argument(
-            help="Algorithm: a tabular one (q-learning, sarsa, ...) or ppo, dqn, sac, td3."
-        ),
-    ] = None,
-    problem: Annotated[
-        str | None,
-        typer.Argument(
-            help="Problem: a built-in name or a Gymnasium id with a model P (tabular), a "
-            "Gymnasium id (deep)."
-        ),
-    ] = None,
+    algorithm: Algorithm = None,
+    problem: Problem = None,
     seeds: Annotated[int, typer.Option("--seeds", help="Seeds 0..N-1 of every configuration.")] = 8,
     set_: Annotated[
         list[str] | None,
@@ -177,47 +248,20 @@ def sweep_command(
         Path | None,
         typer.Option("--out", help="Sweep folder (default sweeps/sweep-ALGO-PROBLEM)."),
     ] = None,
-    address: Annotated[
-        str | None,
-        typer.Option("--address", help="Join the Ray cluster at HOST:PORT (default: a local Ray)."),
-    ] = None,
-    num_cpus: Annotated[
-        int | None, typer.Option("--num-cpus", help="CPUs of the local Ray (default: all).")
-    ] = None,
-    max_failures: Annotated[
-        int, typer.Option("--max-failures", help="Retries of a trial whose worker dies.")
-    ] = 2,
-    resume: Annotated[
-        Path | None,
-        typer.Option(
-            "--resume", help="Continue the sweep in this folder (after a kill or a stop)."
-        ),
-    ] = None,
-    as_json: Annotated[
-        bool,
-        typer.Option(
-            "--json",
-            help="Print one JSON object: sweep.json's content (trials, statistics, ...) and out.",
-        ),
-    ] = False,
+    address: Address = None,
+    num_cpus: NumCpus = None,
+    max_failures: MaxFailures = 2,
+    resume: Resume = None,
+    as_json: AsJson = False,
 ) -> None:
-    from policylab.experiments import parse_option_tokens, parse_set, sweep
-    from policylab.experiments import resume as resume_experiment
+    from policylab.experiments import parse_set, sweep
 
-    if num_cpus is not None:
-        check_count(num_cpus, "--num-cpus")
-    if resume is not None:
-        _check_resume_args(algorithm, problem, list(ctx.args), set=set_, out=out)
-        doc = resume_experiment(resume, address=address, num_cpus=num_cpus, progress=not as_json)
-        _finish(doc, resume, as_json)
+    if _resumed(ctx, algorithm, problem, resume, address, num_cpus, as_json, set=set_, out=out):
         return
-    algorithm, problem = _need(algorithm, problem, "sweep")
-    check_count(seeds, "--seeds")
-    check_count(max_failures, "--max-failures", minimum=0)
-    options = parse_option_tokens(algorithm, list(ctx.args))
+    algorithm, problem, options, target = _prepare(
+        ctx, "sweep", algorithm, problem, seeds, max_failures, out
+    )
     grid = parse_set(set_ or [])
-    target = out or _default_out("sweep", algorithm.lower(), problem)
-    check_output_dir(target, "--out")
     doc = sweep(
         algorithm,
         problem,
@@ -235,16 +279,8 @@ def sweep_command(
 
 def tune_command(
     ctx: typer.Context,
-    algorithm: Annotated[
-        str | None,
-        typer.Argument(
-            help="Algorithm: a tabular one (q-learning, sarsa, ...) or ppo, dqn, sac, td3."
-        ),
-    ] = None,
-    problem: Annotated[
-        str | None,
-        typer.Argument(help="Problem: a built-in name or Gymnasium id with a model P, or an env."),
-    ] = None,
+    algorithm: Algorithm = None,
+    problem: Problem = None,
     trials: Annotated[int, typer.Option("--trials", help="Configurations to try.")] = 20,
     param: Annotated[
         list[str] | None,
@@ -268,51 +304,25 @@ def tune_command(
     out: Annotated[
         Path | None, typer.Option("--out", help="Sweep folder (default sweeps/tune-ALGO-PROBLEM).")
     ] = None,
-    address: Annotated[
-        str | None,
-        typer.Option("--address", help="Join the Ray cluster at HOST:PORT (default: a local Ray)."),
-    ] = None,
-    num_cpus: Annotated[
-        int | None, typer.Option("--num-cpus", help="CPUs of the local Ray (default: all).")
-    ] = None,
-    max_failures: Annotated[
-        int, typer.Option("--max-failures", help="Retries of a trial whose worker dies.")
-    ] = 2,
-    resume: Annotated[
-        Path | None,
-        typer.Option(
-            "--resume", help="Continue the search in this folder (after a kill or a stop)."
-        ),
-    ] = None,
-    as_json: Annotated[
-        bool,
-        typer.Option(
-            "--json",
-            help="Print one JSON object: sweep.json's content (trials, statistics, best) and out.",
-        ),
-    ] = False,
+    address: Address = None,
+    num_cpus: NumCpus = None,
+    max_failures: MaxFailures = 2,
+    resume: Resume = None,
+    as_json: AsJson = False,
 ) -> None:
-    from policylab.experiments import parse_distribution, parse_option_tokens, parse_set, tune
-    from policylab.experiments import resume as resume_experiment
+    from policylab.experiments import parse_distribution, parse_set, tune
 
-    if num_cpus is not None:
-        check_count(num_cpus, "--num-cpus")
-    if resume is not None:
-        _check_resume_args(algorithm, problem, list(ctx.args), param=param, set=set_, out=out)
-        doc = resume_experiment(resume, address=address, num_cpus=num_cpus, progress=not as_json)
-        _finish(doc, resume, as_json)
+    given = {"param": param, "set": set_, "out": out}
+    if _resumed(ctx, algorithm, problem, resume, address, num_cpus, as_json, **given):
         return
-    algorithm, problem = _need(algorithm, problem, "tune")
-    check_count(seeds, "--seeds")
-    check_count(max_failures, "--max-failures", minimum=0)
+    algorithm, problem, options, target = _prepare(
+        ctx, "tune", algorithm, problem, seeds, max_failures, out
+    )
     check_seed(search_seed, "--search-seed")
     space = dict(parse_distribution(p) for p in (param or []))
     if len(space) != len(param or []):
         raise InvalidArgumentError("--param names a key twice; give each key one distribution")
-    options = parse_option_tokens(algorithm, list(ctx.args))
     fixed = parse_set(set_ or [])
-    target = out or _default_out("tune", algorithm.lower(), problem)
-    check_output_dir(target, "--out")
     doc = tune(
         algorithm,
         problem,

@@ -222,6 +222,15 @@ def _finish(doc: dict[str, Any], out: Path, as_json: bool) -> None:
         print_json({**doc, "out": str(out)})
     else:
         _show(doc, out)
+    unfinished = [t for t in doc["trials"] if t["status"] in ("PENDING", "RUNNING")]
+    if unfinished:
+        err_console.print(
+            f"stopped with {len(unfinished)} run(s) unfinished; continue with --resume {out}",
+            markup=False,
+            highlight=False,
+            soft_wrap=True,
+        )
+        sys.exit(130)
     errors = [t for t in doc["trials"] if t["status"] == "ERROR"]
     if errors:
         err_console.print(

@@ -408,10 +408,15 @@ def run_experiment(
         final = SweepRecord(out_path, exp, record.created)
         for r in grid:
             tid = str((r.metrics or {}).get("trial_id") or _trial_id(r))
-            status = "ERROR" if r.error is not None else "TERMINATED"
-            result = _kept_result(out_path, tid) or (
-                r.metrics if (r.metrics or {}).get("per_seed") else None
-            )
+            kept = _kept_result(out_path, tid)
+            seen = record.trials.get(tid) or [{}]
+            if r.error is not None:
+                status = "ERROR"
+            elif kept is not None or seen[0].get("status") == "TERMINATED":
+                status = "TERMINATED"  # finished, or stopped early by the scheduler
+            else:
+                status = "PENDING"  # the run was stopped (Ctrl-C) before this trial ended
+            result = kept or (r.metrics if (r.metrics or {}).get("per_seed") else None)
             if result is None and tid in record.trials:  # an errored trial: its last report
                 final.trials[tid] = [{**t, "status": status} for t in record.trials[tid]]
             else:

@@ -11,7 +11,7 @@ venv: $(STAMP)
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[deep,dev,docs,games,mujoco]'
+	$(PY) -m pip install --quiet -e '.[deep,dev,docs,games,mujoco,sweep]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -27,7 +27,7 @@ docs-serve: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs serve --strict
 
 bench: $(STAMP)
-	$(PY) -m pip install --quiet -e '.[deep,dev,games,mujoco,bench]'
+	$(PY) -m pip install --quiet -e '.[deep,dev,games,mujoco,sweep,bench]'
 	$(PY) benchmarks/run.py $(BENCH)
 
 # Mutation testing of the equations (not part of `make test`; 45 min on 2 loaded cores).

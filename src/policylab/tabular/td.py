@@ -26,7 +26,7 @@ Example::
 from __future__ import annotations
 
 import time
-from collections.abc import Hashable
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -54,7 +54,7 @@ from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule
 from policylab.tabular.truth import GroundTruth, greedy_probs
-from policylab.validation import as_generator, did_you_mean, normalize_name
+from policylab.validation import as_generator, check_seed, did_you_mean, normalize_name
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -638,7 +638,7 @@ class SeedRuns:
 def seed_study(
     algorithm: str,
     problem: FiniteMDP | Any,
-    seeds: int = 100,
+    seeds: int | Sequence[int] = 100,
     *,
     seed: Seed = 0,
     episodes: int = 500,
@@ -658,7 +658,8 @@ def seed_study(
         algorithm: A TD algorithm's registry name (``"sarsa"``, ``"q-learning"``, ...).
         problem: A FiniteMDP (several runs at once, see :func:`run_seeds`) or a Gymnasium
             env with discrete observations (runs one after the other).
-        seeds: Number of independent runs.
+        seeds: Number of independent runs, or the list of the runs' seeds (run r is then
+            ``learner(problem, seed=seeds[r], ...)``, and ``seed`` is not used).
         seed: Seed of the whole study.
         episodes: Episodes per run.
         policy: The policy evaluated (prediction methods).
@@ -682,8 +683,12 @@ def seed_study(
     control = "epsilon" in allowed
     if control and policy is not None:
         raise InvalidArgumentError(f"{name} is a control method; it takes no policy")
-    n_runs = check_episodes(seeds, "seeds")
-    seed_list = [int(x) for x in as_generator(seed).integers(2**63 - 1, size=n_runs)]
+    if isinstance(seeds, Sequence):
+        seed_list = [int(check_seed(s, "seeds[]") or 0) for s in seeds]
+        n_runs = check_episodes(len(seed_list), "len(seeds)")
+    else:
+        n_runs = check_episodes(seeds, "seeds")
+        seed_list = [int(x) for x in as_generator(seed).integers(2**63 - 1, size=n_runs)]
     kwargs = dict(options, episodes=episodes, checkpoints=1)
     if not control:
         kwargs["policy"] = policy

@@ -1,0 +1,114 @@
+"""Starting or joining Ray: an embedded local Ray, or a running cluster at an address.
+
+Without an address, :func:`connect` starts a local Ray inside the process, sized to the
+machine (or to ``num_cpus``), without its dashboard and without usage statistics. With
+an address it joins a running cluster (``ray start --head`` on one node, ``ray start
+--address=HEAD:6379`` on the others); the address is probed first with a short socket
+timeout, so a wrong or unreachable one is refused within seconds instead of hanging.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+
+from policylab.exceptions import InvalidArgumentError
+
+__all__ = ["connect", "parse_address", "probe_address"]
+
+#: Seconds an address probe waits for a TCP connection.
+PROBE_TIMEOUT = 3.0
+
+
+def _quiet_ray_env() -> None:
+    """No usage statistics, no Tune banners, no de-duplicated logs: set before importing Ray."""
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")
+    os.environ.setdefault("TUNE_WARN_EXCESSIVE_EXPERIMENT_CHECKPOINT_SYNC_THRESHOLD_S", "1000")
+    os.environ.setdefault("RAY_DEDUP_LOGS", "0")
+
+
+def parse_address(address: str) -> tuple[str, int] | None:
+    """``(host, port)`` of a cluster address (``HOST:PORT``, ``ray://HOST:PORT``); None for auto.
+
+    Raises:
+        InvalidArgumentError: An address without a host or with a bad port.
+    """
+    text = address.strip()
+    if text == "auto":
+        return None
+    client = text.startswith("ray://")
+    rest = text[len("ray://") :] if client else text
+    host, colon, port_text = rest.rpartition(":")
+    if not colon:
+        host, port_text = rest, "10001" if client else "6379"
+    try:
+        port = int(port_text)
+    except ValueError:
+        port = -1
+    if not host or not 0 < port < 65536:
+        raise InvalidArgumentError(
+            f"--address must be HOST:PORT (the head node's `ray start --head` address, port "
+            f"6379 by default), ray://HOST:PORT or auto; got {address!r}"
+        )
+    return host, port
+
+
+def probe_address(address: str, timeout: float = PROBE_TIMEOUT) -> None:
+    """Refuse, within ``timeout`` seconds, a cluster address nothing listens on.
+
+    Raises:
+        InvalidArgumentError: The address is malformed or cannot be reached.
+    """
+    hp = parse_address(address)
+    if hp is None:
+        return
+    try:
+        with socket.create_connection(hp, timeout=timeout):
+            pass
+    except OSError as e:
+        reason = "timed out" if isinstance(e, TimeoutError) else (e.strerror or str(e))
+        raise InvalidArgumentError(
+            f"cannot reach a Ray cluster at {address!r} ({reason} after at most {timeout:g} s); "
+            "start one with `ray start --head` on the head node and pass its address, or "
+            "leave out --address to run on this machine"
+        ) from None
+
+
+def connect(address: str | None = None, num_cpus: int | None = None) -> bool:
+    """Make sure this process is connected to Ray; returns whether this call connected it.
+
+    A process already connected (``ray.init`` called before, as a test or a notebook
+    does) is left as it is.
+
+    Args:
+        address: A running cluster's address (``HOST:PORT``, ``ray://HOST:PORT`` or
+            ``auto``), or None for an embedded local Ray.
+        num_cpus: CPUs of the local Ray (default: the machine's).
+
+    Raises:
+        InvalidArgumentError: An unreachable or malformed address.
+    """
+    _quiet_ray_env()
+    if address is not None:
+        probe_address(address)
+        # something that accepts TCP but is no Ray head is given up on within seconds
+        os.environ.setdefault("RAY_gcs_rpc_server_connect_timeout_s", "5")
+        os.environ.setdefault("RAY_gcs_rpc_server_reconnect_timeout_s", "5")
+    import ray
+
+    logging.getLogger("ray.tune").setLevel(logging.WARNING)  # no "wrote the result files" lines
+    if ray.is_initialized():
+        return False
+    kwargs = {"log_to_driver": False, "logging_level": logging.WARNING, "configure_logging": True}
+    try:
+        if address is not None:
+            ray.init(address=address, **kwargs)  # type: ignore[arg-type]
+        else:
+            ray.init(num_cpus=num_cpus, include_dashboard=False, **kwargs)  # type: ignore[arg-type]
+    except ConnectionError as e:
+        raise InvalidArgumentError(
+            f"cannot join the Ray cluster at {address!r}: {' '.join(str(e).split())}"
+        ) from None
+    return True

@@ -10,7 +10,8 @@ CPU milliseconds per gradient update (process time, which counts only the CPU th
 process got).
 
 Quality (``--pendulum``): policylab's SAC and TD3 with the zoo's Pendulum-v1 settings
-for 20k steps, on ``--seeds`` seeds, evaluated greedily on 10 episodes.
+for 20k steps, on ``--seeds`` seeds, evaluated greedily on ``--episodes`` episodes (750,
+the zoo's protocol of 150,000 evaluation steps); ``--sb3`` trains SB3 alongside.
 
     python benchmarks/bench_continuous.py                  # the speed table
     python benchmarks/bench_continuous.py --pendulum       # the Pendulum-v1 table
@@ -157,6 +158,31 @@ def speed(args: argparse.Namespace) -> None:
         )
 
 
+def _sb3_pendulum(algo: str, seed: int, steps: int) -> object:
+    """SB3's model trained with the zoo's Pendulum-v1 entry (the same as policylab's)."""
+    from stable_baselines3 import SAC, TD3
+    from stable_baselines3.common.noise import NormalActionNoise
+
+    if algo == "sac":
+        model = SAC("MlpPolicy", "Pendulum-v1", learning_rate=1e-3, seed=seed, device="cpu")
+    else:
+        model = TD3(
+            "MlpPolicy", "Pendulum-v1", gamma=0.98, buffer_size=200_000, learning_starts=10_000,
+            action_noise=NormalActionNoise(np.zeros(1), 0.1 * np.ones(1)), learning_rate=1e-3,
+            policy_kwargs=dict(net_arch=[400, 300]), seed=seed, device="cpu",
+        )  # fmt: skip
+    model.learn(steps)
+    return model
+
+
+class _SB3Predictor:
+    def __init__(self, model: object) -> None:
+        self.model = model
+
+    def predict(self, obs: object, deterministic: bool = True) -> object:
+        return self.model.predict(obs, deterministic=deterministic)[0]  # type: ignore[attr-defined]
+
+
 def pendulum(args: argparse.Namespace) -> None:
     import torch
 
@@ -165,33 +191,45 @@ def pendulum(args: argparse.Namespace) -> None:
     torch.set_num_threads(1)
     loads = [_load()]
     published = {"sac": -157.0, "td3": -152.0}
+    libs = ["policylab", "SB3"] if args.sb3 else ["policylab"]
     rows = [
-        "| algorithm | seed | return (10 greedy episodes) | SB3 zoo's published | wall-clock s |",
-        "|---|---:|---:|---:|---:|",
+        f"| algorithm | library | seed | mean return, {args.episodes} greedy episodes "
+        "| SB3 zoo's published | wall-clock s |",
+        "|---|---|---:|---:|---:|---:|",
     ]
     for algo in args.algos:
         fields, steps = pl.deep.default_config(algo, "Pendulum-v1")
-        for seed in range(args.seeds):
-            t = time.perf_counter()
-            agent = pl.deep.ALGORITHMS[algo]("Pendulum-v1", seed=seed, **fields)
-            agent.learn(int(steps or 20_000))
-            sec = time.perf_counter() - t
-            ret = float(np.mean(pl.deep.evaluate(agent, episodes=10, seed=1000 + seed)))
-            print(f"{algo} seed {seed}: {ret:.1f} ({sec:.0f} s)", flush=True)
-            rows.append(
-                f"| {algo.upper()} | {seed} | {ret:.1f} | {published[algo]:.0f} | {sec:.0f} |"
-            )
+        for seed in args.seed_list or range(args.seeds):
+            for lib in libs:
+                t = time.perf_counter()
+                if lib == "policylab":
+                    agent: object = pl.deep.ALGORITHMS[algo]("Pendulum-v1", seed=seed, **fields)
+                    agent.learn(int(steps or 20_000))  # type: ignore[attr-defined]
+                else:
+                    agent = _SB3Predictor(_sb3_pendulum(algo, seed, int(steps or 20_000)))
+                sec = time.perf_counter() - t
+                episodes, eval_seed = args.episodes, 1000 + seed
+                returns = pl.deep.evaluate(agent, "Pendulum-v1", episodes, eval_seed)  # type: ignore[arg-type]
+                ret = float(np.mean(returns))
+                print(f"{algo} {lib} seed {seed}: {ret:.1f} ({sec:.0f} s)", flush=True)
+                rows.append(
+                    f"| {algo.upper()} | {lib} | {seed} | {ret:.1f} | {published[algo]:.0f} "
+                    f"| {sec:.0f} |"
+                )
     loads.append(_load())
     body = (
         "policylab's zoo defaults for Pendulum-v1 (`policylab train sac|td3 Pendulum-v1`), "
-        "20,000 steps. Load before and after:\n\n"
+        f"20,000 steps, then the mean return of {args.episodes} deterministic episodes of the "
+        "final policy (the zoo's published numbers are means over 150,000 evaluation steps, "
+        "750 episodes, of the final deterministic policy). Load before and after:\n\n"
         f"    {loads[0]}\n    {loads[1]}\n\n" + "\n".join(rows)
     )
     print(body)
     if args.write:
         write_section(
             "Deep RL: SAC and TD3 on Pendulum-v1",
-            f"python benchmarks/bench_continuous.py --pendulum --seeds {args.seeds}",
+            f"python benchmarks/bench_continuous.py --pendulum --seeds {args.seeds} "
+            f"--episodes {args.episodes}" + (" --sb3" if args.sb3 else ""),
             body,
         )
 
@@ -206,6 +244,9 @@ def main() -> None:
     p.add_argument("--algos", nargs="+", default=["sac", "td3"])
     p.add_argument("--pendulum", action="store_true", help="the Pendulum-v1 quality table")
     p.add_argument("--seeds", type=int, default=3)
+    p.add_argument("--seed-list", type=int, nargs="+", help="these seeds instead of --seeds")
+    p.add_argument("--episodes", type=int, default=750, help="evaluation episodes (--pendulum)")
+    p.add_argument("--sb3", action="store_true", help="also train SB3 (--pendulum)")
     p.add_argument("--no-write", dest="write", action="store_false")
     args = p.parse_args()
     pendulum(args) if args.pendulum else speed(args)

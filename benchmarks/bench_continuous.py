@@ -15,6 +15,7 @@ the zoo's protocol of 150,000 evaluation steps); ``--sb3`` trains SB3 alongside.
 
     python benchmarks/bench_continuous.py                  # the speed table
     python benchmarks/bench_continuous.py --pendulum       # the Pendulum-v1 table
+    python benchmarks/bench_continuous.py --per-update 60  # single updates, alternating
 """
 
 from __future__ import annotations
@@ -158,6 +159,57 @@ def speed(args: argparse.Namespace) -> None:
         )
 
 
+def per_update(args: argparse.Namespace) -> None:
+    """CPU ms of single updates of both libraries, alternating in one process (p25)."""
+    import gymnasium as gym
+    import torch
+    from stable_baselines3 import SAC, TD3
+    from stable_baselines3.common.noise import NormalActionNoise
+
+    import policylab as pl
+
+    torch.set_num_threads(1)
+    print(_load())
+    for algo in args.algos:
+        kw = dict(_common(args), learning_starts=300, buffer_size=10_000)
+        agent = pl.deep.ALGORITHMS[algo](args.env, seed=0, hidden=NETS[algo], **kw)
+        agent.learn(400)
+        env = gym.make(args.env)
+        sb_kw: dict[str, object] = dict(
+            seed=0, device="cpu", policy_kwargs=dict(net_arch=list(NETS[algo])), **kw
+        )
+        if algo == "sac":
+            model = SAC("MlpPolicy", env, **sb_kw)
+        else:
+            m = env.action_space.shape[0]
+            noise = NormalActionNoise(np.zeros(m), 0.1 * np.ones(m))
+            model = TD3("MlpPolicy", env, action_noise=noise, **sb_kw)
+        model.learn(400)
+
+        def ours(agent: object = agent) -> None:
+            stats = agent._train_step(agent.replay.sample(256))  # type: ignore[attr-defined]
+            torch.stack(list(stats.values())).tolist()
+
+        def sb3(model: object = model) -> None:
+            model.train(gradient_steps=1, batch_size=256)  # type: ignore[attr-defined]
+
+        times: dict[str, list[float]] = {"policylab": [], "SB3": []}
+        for i in range(args.per_update + 10):
+            for lib, fn in (("policylab", ours), ("SB3", sb3))[:: 1 if i % 2 == 0 else -1]:
+                t = time.process_time()
+                fn()
+                if i >= 10:  # the first ten of each warm up
+                    times[lib].append(time.process_time() - t)
+        ms = {lib: 1000 * float(np.percentile(ts, 25)) for lib, ts in times.items()}
+        print(
+            f"{algo.upper()}: policylab {ms['policylab']:.2f} ms, SB3 {ms['SB3']:.2f} ms CPU per "
+            f"update (25th percentile of {args.per_update} alternating updates each), "
+            f"SB3 / policylab {ms['SB3'] / ms['policylab']:.2f}x",
+            flush=True,
+        )
+    print(_load())
+
+
 def _sb3_pendulum(algo: str, seed: int, steps: int) -> object:
     """SB3's model trained with the zoo's Pendulum-v1 entry (the same as policylab's)."""
     from stable_baselines3 import SAC, TD3
@@ -247,9 +299,16 @@ def main() -> None:
     p.add_argument("--seed-list", type=int, nargs="+", help="these seeds instead of --seeds")
     p.add_argument("--episodes", type=int, default=750, help="evaluation episodes (--pendulum)")
     p.add_argument("--sb3", action="store_true", help="also train SB3 (--pendulum)")
+    p.add_argument(
+        "--per-update", type=int, default=0, metavar="N",
+        help="instead: N single updates of each library, alternating, CPU ms each",
+    )  # fmt: skip
     p.add_argument("--no-write", dest="write", action="store_false")
     args = p.parse_args()
-    pendulum(args) if args.pendulum else speed(args)
+    if args.per_update:
+        per_update(args)
+    else:
+        pendulum(args) if args.pendulum else speed(args)
 
 
 if __name__ == "__main__":

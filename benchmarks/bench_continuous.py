@@ -10,10 +10,12 @@ CPU milliseconds per gradient update (process time, which counts only the CPU th
 process got).
 
 Quality (``--pendulum``): policylab's SAC and TD3 with the zoo's Pendulum-v1 settings
-for 20k steps, on ``--seeds`` seeds, evaluated greedily on 10 episodes.
+for 20k steps, on ``--seeds`` seeds, evaluated greedily on ``--episodes`` episodes (750,
+the zoo's protocol of 150,000 evaluation steps); ``--sb3`` trains SB3 alongside.
 
     python benchmarks/bench_continuous.py                  # the speed table
     python benchmarks/bench_continuous.py --pendulum       # the Pendulum-v1 table
+    python benchmarks/bench_continuous.py --per-update 60  # single updates, alternating
 """
 
 from __future__ import annotations
@@ -157,6 +159,82 @@ def speed(args: argparse.Namespace) -> None:
         )
 
 
+def per_update(args: argparse.Namespace) -> None:
+    """CPU ms of single updates of both libraries, alternating in one process (p25)."""
+    import gymnasium as gym
+    import torch
+    from stable_baselines3 import SAC, TD3
+    from stable_baselines3.common.noise import NormalActionNoise
+
+    import policylab as pl
+
+    torch.set_num_threads(1)
+    print(_load())
+    for algo in args.algos:
+        kw = dict(_common(args), learning_starts=300, buffer_size=10_000)
+        agent = pl.deep.ALGORITHMS[algo](args.env, seed=0, hidden=NETS[algo], **kw)
+        agent.learn(400)
+        env = gym.make(args.env)
+        sb_kw: dict[str, object] = dict(
+            seed=0, device="cpu", policy_kwargs=dict(net_arch=list(NETS[algo])), **kw
+        )
+        if algo == "sac":
+            model = SAC("MlpPolicy", env, **sb_kw)
+        else:
+            m = env.action_space.shape[0]
+            noise = NormalActionNoise(np.zeros(m), 0.1 * np.ones(m))
+            model = TD3("MlpPolicy", env, action_noise=noise, **sb_kw)
+        model.learn(400)
+
+        def ours(agent: object = agent) -> None:
+            stats = agent._train_step(agent.replay.sample(256))  # type: ignore[attr-defined]
+            torch.stack(list(stats.values())).tolist()
+
+        def sb3(model: object = model) -> None:
+            model.train(gradient_steps=1, batch_size=256)  # type: ignore[attr-defined]
+
+        times: dict[str, list[float]] = {"policylab": [], "SB3": []}
+        for i in range(args.per_update + 10):
+            for lib, fn in (("policylab", ours), ("SB3", sb3))[:: 1 if i % 2 == 0 else -1]:
+                t = time.process_time()
+                fn()
+                if i >= 10:  # the first ten of each warm up
+                    times[lib].append(time.process_time() - t)
+        ms = {lib: 1000 * float(np.percentile(ts, 25)) for lib, ts in times.items()}
+        print(
+            f"{algo.upper()}: policylab {ms['policylab']:.2f} ms, SB3 {ms['SB3']:.2f} ms CPU per "
+            f"update (25th percentile of {args.per_update} alternating updates each), "
+            f"SB3 / policylab {ms['SB3'] / ms['policylab']:.2f}x",
+            flush=True,
+        )
+    print(_load())
+
+
+def _sb3_pendulum(algo: str, seed: int, steps: int) -> object:
+    """SB3's model trained with the zoo's Pendulum-v1 entry (the same as policylab's)."""
+    from stable_baselines3 import SAC, TD3
+    from stable_baselines3.common.noise import NormalActionNoise
+
+    if algo == "sac":
+        model = SAC("MlpPolicy", "Pendulum-v1", learning_rate=1e-3, seed=seed, device="cpu")
+    else:
+        model = TD3(
+            "MlpPolicy", "Pendulum-v1", gamma=0.98, buffer_size=200_000, learning_starts=10_000,
+            action_noise=NormalActionNoise(np.zeros(1), 0.1 * np.ones(1)), learning_rate=1e-3,
+            policy_kwargs=dict(net_arch=[400, 300]), seed=seed, device="cpu",
+        )  # fmt: skip
+    model.learn(steps)
+    return model
+
+
+class _SB3Predictor:
+    def __init__(self, model: object) -> None:
+        self.model = model
+
+    def predict(self, obs: object, deterministic: bool = True) -> object:
+        return self.model.predict(obs, deterministic=deterministic)[0]  # type: ignore[attr-defined]
+
+
 def pendulum(args: argparse.Namespace) -> None:
     import torch
 
@@ -165,33 +243,45 @@ def pendulum(args: argparse.Namespace) -> None:
     torch.set_num_threads(1)
     loads = [_load()]
     published = {"sac": -157.0, "td3": -152.0}
+    libs = ["policylab", "SB3"] if args.sb3 else ["policylab"]
     rows = [
-        "| algorithm | seed | return (10 greedy episodes) | SB3 zoo's published | wall-clock s |",
-        "|---|---:|---:|---:|---:|",
+        f"| algorithm | library | seed | mean return, {args.episodes} greedy episodes "
+        "| SB3 zoo's published | wall-clock s |",
+        "|---|---|---:|---:|---:|---:|",
     ]
     for algo in args.algos:
         fields, steps = pl.deep.default_config(algo, "Pendulum-v1")
-        for seed in range(args.seeds):
-            t = time.perf_counter()
-            agent = pl.deep.ALGORITHMS[algo]("Pendulum-v1", seed=seed, **fields)
-            agent.learn(int(steps or 20_000))
-            sec = time.perf_counter() - t
-            ret = float(np.mean(pl.deep.evaluate(agent, episodes=10, seed=1000 + seed)))
-            print(f"{algo} seed {seed}: {ret:.1f} ({sec:.0f} s)", flush=True)
-            rows.append(
-                f"| {algo.upper()} | {seed} | {ret:.1f} | {published[algo]:.0f} | {sec:.0f} |"
-            )
+        for seed in args.seed_list or range(args.seeds):
+            for lib in libs:
+                t = time.perf_counter()
+                if lib == "policylab":
+                    agent: object = pl.deep.ALGORITHMS[algo]("Pendulum-v1", seed=seed, **fields)
+                    agent.learn(int(steps or 20_000))  # type: ignore[attr-defined]
+                else:
+                    agent = _SB3Predictor(_sb3_pendulum(algo, seed, int(steps or 20_000)))
+                sec = time.perf_counter() - t
+                episodes, eval_seed = args.episodes, 1000 + seed
+                returns = pl.deep.evaluate(agent, "Pendulum-v1", episodes, eval_seed)  # type: ignore[arg-type]
+                ret = float(np.mean(returns))
+                print(f"{algo} {lib} seed {seed}: {ret:.1f} ({sec:.0f} s)", flush=True)
+                rows.append(
+                    f"| {algo.upper()} | {lib} | {seed} | {ret:.1f} | {published[algo]:.0f} "
+                    f"| {sec:.0f} |"
+                )
     loads.append(_load())
     body = (
         "policylab's zoo defaults for Pendulum-v1 (`policylab train sac|td3 Pendulum-v1`), "
-        "20,000 steps. Load before and after:\n\n"
+        f"20,000 steps, then the mean return of {args.episodes} deterministic episodes of the "
+        "final policy (the zoo's published numbers are means over 150,000 evaluation steps, "
+        "750 episodes, of the final deterministic policy). Load before and after:\n\n"
         f"    {loads[0]}\n    {loads[1]}\n\n" + "\n".join(rows)
     )
     print(body)
     if args.write:
         write_section(
             "Deep RL: SAC and TD3 on Pendulum-v1",
-            f"python benchmarks/bench_continuous.py --pendulum --seeds {args.seeds}",
+            f"python benchmarks/bench_continuous.py --pendulum --seeds {args.seeds} "
+            f"--episodes {args.episodes}" + (" --sb3" if args.sb3 else ""),
             body,
         )
 
@@ -206,9 +296,19 @@ def main() -> None:
     p.add_argument("--algos", nargs="+", default=["sac", "td3"])
     p.add_argument("--pendulum", action="store_true", help="the Pendulum-v1 quality table")
     p.add_argument("--seeds", type=int, default=3)
+    p.add_argument("--seed-list", type=int, nargs="+", help="these seeds instead of --seeds")
+    p.add_argument("--episodes", type=int, default=750, help="evaluation episodes (--pendulum)")
+    p.add_argument("--sb3", action="store_true", help="also train SB3 (--pendulum)")
+    p.add_argument(
+        "--per-update", type=int, default=0, metavar="N",
+        help="instead: N single updates of each library, alternating, CPU ms each",
+    )  # fmt: skip
     p.add_argument("--no-write", dest="write", action="store_false")
     args = p.parse_args()
-    pendulum(args) if args.pendulum else speed(args)
+    if args.per_update:
+        per_update(args)
+    else:
+        pendulum(args) if args.pendulum else speed(args)
 
 
 if __name__ == "__main__":

@@ -115,6 +115,30 @@ def test_twin_q_network_is_two_mlps_and_detached_params_give_no_critic_grads() -
     assert act.grad is not None and all(p.grad is None for p in net.parameters())
 
 
+def test_twin_q_network_gradients_are_those_of_two_mlps() -> None:
+    net = TwinQNetwork(3, 2, (8, 5), "relu", torch.Generator().manual_seed(1))
+    with torch.no_grad():  # nonzero biases, so that their gradients are tested too
+        for b in net.biases:
+            b.normal_(generator=torch.Generator().manual_seed(2))
+    obs = torch.randn(6, 3, generator=torch.Generator().manual_seed(3))
+    act = torch.randn(6, 2, generator=torch.Generator().manual_seed(4)).requires_grad_()
+    y = torch.randn(6, generator=torch.Generator().manual_seed(5))
+    ((net(obs, act) - y) ** 2).sum().backward()
+    got = [p.grad.clone() for p in net.parameters()]  # type: ignore[union-attr]
+    got_act = act.grad.clone()  # type: ignore[union-attr]
+    ps = [p.detach().clone().requires_grad_() for p in net.parameters()]
+    act.grad = None
+    loss = torch.zeros(())
+    for k in range(2):  # the two critics as plain MLPs on [s, a]
+        h = torch.relu(obs @ ps[0][k] + act @ ps[1][k] + ps[4][k])
+        h = torch.relu(h @ ps[2][k] + ps[5][k])
+        loss = loss + (((h @ ps[3][k] + ps[6][k]).squeeze(-1) - y) ** 2).sum()
+    loss.backward()
+    for g, p in zip(got, ps, strict=True):
+        torch.testing.assert_close(g, p.grad)
+    torch.testing.assert_close(got_act, act.grad)
+
+
 def test_actions_are_rescaled_to_the_box_bounds() -> None:
     agent = pl.deep.TD3(_BoxEnv(low=[-2.0, 0.0], high=[2.0, 1.0]), **TINY)
     np.testing.assert_allclose(

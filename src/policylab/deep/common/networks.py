@@ -206,12 +206,13 @@ class TwinQNetwork(nn.Module):
     """Two critics Q_1(s, a), Q_2(s, a) evaluated together (SAC, TD3).
 
     Each layer of the two MLPs is one (2, in, out) weight tensor, so both critics run as
-    one batched matrix product per layer (``torch.baddbmm``): half the kernel launches
-    of two separate networks, with the same arithmetic. The first layer keeps separate
-    weights for the observation and the action, W_s s + W_a a + b (the same layer as
-    W [s; a] + b), so that an actor's loss, which needs dQ/da only, never multiplies
-    gradients through W_s. Weights are orthogonal (gain sqrt(2) in hidden layers, 1 at
-    the output), biases zero.
+    one batched matrix product per layer (``torch.bmm``/``torch.baddbmm``): half the
+    kernel launches of two separate networks, with the same arithmetic. The first layer
+    W_s s + W_a a + b (the same layer as W [s; a] + b) is stored as W_s, W_a and b and
+    computed as one product [s, a, 1] [W_s; W_a; b], which copies no bias into its
+    output; the one-output last layer is an element-wise product and a sum, which a CPU
+    runs about ten times faster than a matrix product with one output column. Weights
+    are orthogonal (gain sqrt(2) in hidden layers, 1 at the output), biases zero.
 
     Args:
         obs_dim: Observation features.
@@ -268,12 +269,17 @@ class TwinQNetwork(nn.Module):
         n = len(ps) // 2  # n + 1 weights (the first layer's two) and n biases
         ws, bs = ps[: n + 1], ps[n + 1 :]
         k = len(ws[0])  # 2, or 1 with the first critic's tensors alone
-        s = obs.reshape(len(obs), -1).unsqueeze(0).expand(k, -1, -1)
-        h = torch.baddbmm(bs[0], s, ws[0])
-        h = torch.baddbmm(h, actions.unsqueeze(0).expand(k, -1, -1), ws[1])
-        for i in range(1, n):
+        # the first layer as one product [s, a, 1] [W_s; W_a; b]: no bias copied into the
+        # output and one matrix product instead of two
+        x = torch.cat([obs.reshape(len(obs), -1), actions, obs.new_ones((len(obs), 1))], 1)
+        h = torch.bmm(x.unsqueeze(0).expand(k, -1, -1), torch.cat([ws[0], ws[1], bs[0]], 1))
+        for i in range(1, n - 1):
             h = torch.baddbmm(bs[i], self.act(h), ws[i + 1])
-        return h.squeeze(-1)
+        # the one-output layer as a product and a sum: a matrix product with one output
+        # column (and its backward, an outer product) runs about 10x slower on a CPU
+        w_out = ws[n].reshape(k, 1, -1)
+        q: torch.Tensor = (self.act(h) * w_out).sum(-1) + bs[n - 1].reshape(k, 1)
+        return q
 
 
 class ActorMLP(nn.Module):

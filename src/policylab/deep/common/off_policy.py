@@ -187,8 +187,9 @@ class OffPolicyAgent(Agent):
         Returns:
             (2, B) Q_1 and Q_2, or (1, B) Q_1 alone with ``first_only`` (half the work).
         """
-        n = 1 if first_only else 2
-        params = [p.detach()[:n] for p in self._critic_params]
+        params = [p.detach() for p in self._critic_params]
+        if first_only:
+            params = [p[:1] for p in params]
         out: torch.Tensor = self.critic(obs, actions, params)
         return out
 

@@ -28,9 +28,9 @@ TINY = dict(
 )
 
 
-def uniform(state):
-    legal = state.action_mask().astype(float)
-    return legal / legal.sum(), 0.0
+def uniform(states):
+    legal = np.stack([s.action_mask() for s in states]).astype(float)
+    return legal / legal.sum(axis=1, keepdims=True), np.zeros(len(states))
 
 
 def test_puct_with_uniform_priors_finds_the_win_and_the_block():

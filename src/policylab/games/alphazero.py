@@ -15,8 +15,10 @@ One iteration:
    with temperature 1 for the first moves, then taken greedily. Each position is
    stored with the search policy pi(a) = N(s0, a) / sum_b N(s0, b) and the final
    outcome z for the player to move there.
-2. **Training** on minibatches from the replay of recent games (mirrored boards
-   added) with the loss  (z - v)^2 - pi . log p  (plus weight decay).
+2. **Training** on minibatches from the replay of recent games (each sample in a
+   random one of the board's symmetries: the eight of the square for tic-tac-toe,
+   the mirror image for Connect Four) with the loss  (z - v)^2 - pi . log p  (plus
+   weight decay).
 3. **Evaluation**: the trained network plays the best one; it replaces the best if
    it scores at least ``accept_score`` (wins + draws / 2 over games).
 
@@ -62,11 +64,40 @@ __all__ = [
     "train_alphazero",
 ]
 
-MIRROR: dict[str, list[int]] = {
-    "tic-tac-toe": [2, 1, 0, 5, 4, 3, 8, 7, 6],
-    "connect-four": [6, 5, 4, 3, 2, 1, 0],
+SYMMETRIES: dict[str, tuple[tuple[int, bool], ...]] = {
+    "tic-tac-toe": tuple((k, f) for f in (False, True) for k in range(4)),
+    "connect-four": ((0, False), (0, True)),
 }
-"""The action each action becomes when the board is mirrored left to right."""
+"""The symmetries of each game's board: (quarter turns, mirrored first), the identity first.
+
+Tic-tac-toe has the eight of the square; Connect Four (gravity) only the mirror image.
+"""
+
+
+def transform_board(x: NDArray[Any], turns: int, mirrored: bool) -> NDArray[Any]:
+    """Boards ``x`` (..., rows, cols) mirrored left to right if asked, then turned by quarters."""
+    if mirrored:
+        x = x[..., ::-1]
+    return np.rot90(x, turns, axes=(-2, -1))
+
+
+def symmetries(game: Game) -> list[tuple[int, bool, NDArray[np.int64]]]:
+    """Each board symmetry of ``game`` with its action permutation.
+
+    A triple (turns, mirrored, perm): the board ``transform_board(x, turns, mirrored)``
+    has the search policy ``pi[perm]`` (action j of the new board is action perm[j] of
+    the old one).
+    """
+    if game.n_actions == game.rows * game.cols:  # one action per cell
+        grid = np.arange(game.n_actions).reshape(game.rows, game.cols)
+    else:  # one action per column
+        grid = np.tile(np.arange(game.cols), (game.rows, 1))
+    out = []
+    for turns, mirrored in SYMMETRIES[game.name]:
+        t = transform_board(grid, turns, mirrored)
+        perm = t.ravel() if game.n_actions == game.rows * game.cols else t[0]
+        out.append((turns, mirrored, np.ascontiguousarray(perm, dtype=np.int64)))
+    return out
 
 
 @dataclass(frozen=True)
@@ -196,12 +227,11 @@ def default_config(game: str | Game, **overrides: Any) -> AlphaZeroConfig:
             dirichlet_alpha=1.0,
             temperature_moves=12,
             replay_games=1000,
-            train_steps=150,
+            train_steps=100,
             batch_size=256,
             channels=48,
             blocks=3,
-            eval_games=20,
-            accept_score=0.55,
+            eval_games=0,  # a short run gains more from games than from gating them
             workers=1,
             parallel_games=48,
         )
@@ -679,7 +709,7 @@ def train_alphazero(
             history = list(meta.get("history", []))
         else:
             best.load_state_dict(net.state_dict())
-        mirror = np.array(MIRROR[g.name])
+        syms = symmetries(g)
         logger = RunLogger(rd, resume_step=done if resume else None)  # cut back to `done`
         pool = (
             get_context("spawn").Pool(cfg.workers, _worker_init, (os.getpid(),))
@@ -784,9 +814,12 @@ def train_alphazero(
                         stop_if_interrupted(it)
                         idx = rng.integers(len(zs), size=min(cfg.batch_size, len(zs)))
                         x, p, z = planes[idx].copy(), pis[idx].copy(), zs[idx]
-                        flip = rng.random(len(idx)) < 0.5  # the mirrored board is as good a sample
-                        x[flip] = x[flip][..., ::-1]
-                        p[flip] = p[flip][:, mirror]
+                        # a board's symmetric images are as good samples (their policies permuted)
+                        which = rng.integers(len(syms), size=len(idx))
+                        for j, (turns, mirrored, perm) in enumerate(syms[1:], start=1):
+                            sel = which == j
+                            x[sel] = transform_board(x[sel], turns, mirrored)
+                            p[sel] = p[sel][:, perm]
                         xt, pt, zt = torch.from_numpy(x), torch.from_numpy(p), torch.from_numpy(z)
                         logits, v = net(xt)
                         loss_v = torch.mean((zt - v) ** 2)

@@ -474,10 +474,15 @@ class AlphaZeroPlayer:
 
     def choose(self, state: GameState) -> int:
         """The most visited move (the first among ties); torch on one thread (small nets)."""
+        return self.choose_many([state])[0]
+
+    def choose_many(self, states: Sequence[GameState]) -> list[int]:
+        """:meth:`choose` in each position, searched side by side (leaves in one batch)."""
         from policylab.deep.common.agent import _TorchThreads
 
         with _TorchThreads(1):
-            return int(np.argmax(self.search.visit_counts(state)))
+            counts = self.search.visit_counts_many(states)
+        return [int(np.argmax(row)) for row in counts]
 
     @classmethod
     def from_checkpoint(
@@ -601,34 +606,24 @@ def _worker_games(
     return [g for seeds in batches for g in play_selfplay_games(game, ev, cfg, seeds)]
 
 
-def _match(
-    game: Game, a: Evaluator, b: Evaluator, games: int, simulations: int, c_puct: float, seed: int
-) -> float:
-    """A's score (wins + draws / 2 per game) against B, the games played side by side.
+def _match(game: Game, a: AlphaZeroPlayer, b: AlphaZeroPlayer, games: int, seed: int) -> float:
+    """A's score (wins + draws / 2 per game); the first two moves of each game are random.
 
-    A moves first in the even games; the first two moves of each game are random; each
-    player plays its most visited move (the first among ties), as :class:`AlphaZeroPlayer`.
+    A moves first in the even games (before the random moves); the games are played
+    side by side, each player searching all its positions of a turn together.
     """
+    from policylab.games.arena import play_side_by_side
+
     rng = np.random.default_rng(seed)
-    search = (PUCT(a, simulations, c_puct), PUCT(b, simulations, c_puct))
-    states: list[GameState] = []
+    starts: list[GameState] = []
     for _ in range(games):
         s = game.initial()
         for _ in range(2):
             s = s.play(int(rng.choice(s.legal_actions())))
-        states.append(s)
-    a_colour = [s.player if i % 2 == 0 else 1 - s.player for i, s in enumerate(states)]
-    live = list(range(games))
-    while live:
-        for who in (0, 1):  # 0: A to move, 1: B to move
-            idx = [i for i in live if (states[i].player == a_colour[i]) == (who == 0)]
-            if not idx:
-                continue
-            counts = search[who].visit_counts_many([states[i] for i in idx])
-            for row, i in zip(counts, idx, strict=True):
-                states[i] = states[i].play(int(np.argmax(row)))
-            live = [i for i in live if not states[i].is_terminal()]
-    return sum((s.outcome(c) + 1) / 2 for s, c in zip(states, a_colour, strict=True)) / games
+        starts.append(s)
+    colours = [i % 2 for i in range(games)]
+    ends = play_side_by_side(starts, a, b, colours)
+    return sum((s.outcome(c) + 1) / 2 for s, c in zip(ends, colours, strict=True)) / games
 
 
 # ---------------------------------------------------------------- training loop
@@ -833,15 +828,9 @@ def train_alphazero(
                     score = 1.0
                     stop_if_interrupted(it)
                     if cfg.eval_games > 0:
-                        score = _match(
-                            g,
-                            net_evaluator(net),
-                            net_evaluator(best),
-                            cfg.eval_games,
-                            cfg.eval_simulations,
-                            cfg.c_puct,
-                            int(ss.generate_state(1)[0]),
-                        )
+                        cand = AlphaZeroPlayer(net, g, cfg.eval_simulations, cfg.c_puct)
+                        champ = AlphaZeroPlayer(best, g, cfg.eval_simulations, cfg.c_puct)
+                        score = _match(g, cand, champ, cfg.eval_games, int(ss.generate_state(1)[0]))
                     accepted = score >= cfg.accept_score
                     if accepted:
                         best.load_state_dict(net.state_dict())

@@ -136,3 +136,29 @@ def test_board_symmetries_map_positions_and_optimal_moves(game):
                 t = t.play(int(inv[m]))
             assert np.array_equal(t.encode(), transform_board(s.encode(), turns, mirrored))
             assert sorted(best_moves(t)) == sorted(int(inv[a]) for a in best_moves(s))
+
+
+def test_trained_tictactoe_network_never_loses_to_perfect_play_as_x_or_o():
+    """Every line of the perfect player (each of its optimal moves), AlphaZero first and second.
+
+    The network is the best one of a run with the default settings and seed 0, made by
+    ``tests/games/data/make_alphazero_ttt.py``; it plays as ``load_player`` does (the
+    default 50 simulations per move, its most visited move).
+    """
+    from pathlib import Path
+
+    import torch
+
+    from policylab.games import best_moves
+    from policylab.games.alphazero import AlphaZeroPlayer, make_network
+    from policylab.games.arena import worst_outcome
+
+    cfg = default_config("tic-tac-toe")
+    weights = np.load(Path(__file__).parent / "data" / "alphazero_ttt.npz")
+    net = make_network(TIC_TAC_TOE, cfg.channels, cfg.blocks)
+    net.load_state_dict({k: torch.from_numpy(weights[k]) for k in weights.files})
+    player = AlphaZeroPlayer(net, TIC_TAC_TOE, cfg.eval_simulations, cfg.c_puct)
+    for me in (0, 1):
+        assert worst_outcome(player, TIC_TAC_TOE.initial(), me, best_moves) == 0.0
+    # the line it used to lose as O: X 4, O 1, X 9 (7 loses; 3, 5 or 6 hold the draw)
+    assert player.choose(TIC_TAC_TOE.from_moves("419")) in (2, 4, 5)

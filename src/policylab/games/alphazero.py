@@ -206,7 +206,9 @@ def default_config(game: str | Game, **overrides: Any) -> AlphaZeroConfig:
             simulations=50,
             eval_simulations=50,
             dirichlet_alpha=1.0,
-            temperature_moves=4,
+            # every move sampled: greedy late moves never show the network a fork it
+            # walked into, and it rated such lost positions as won
+            temperature_moves=9,
             replay_games=600,
             train_steps=200,
             batch_size=128,

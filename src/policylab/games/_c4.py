@@ -5,7 +5,8 @@ stones, ``mask`` all stones, column c at bits 7c..7c+5. The solver is negamax wi
 alpha-beta on a null window (iterative deepening of the score bounds), a transposition
 table of upper bounds keyed by ``cur + mask``, pruning of moves that lose at once, and
 move ordering by the number of winning cells a move creates, centre columns first
-(the design of Pascal Pons' Connect Four solver).
+(the design of Pascal Pons' Connect Four solver). UCT search runs whole here too:
+its tree in arrays, its playouts on the bitboards.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["TT_SIZE", "new_table", "rollout", "solve", "solve_moves"]
+__all__ = ["TT_SIZE", "new_table", "rollout", "solve", "solve_moves", "uct_search"]
 
 W = 7
 H = 6
@@ -206,23 +207,171 @@ def solve_moves(
     return out
 
 
+@nb.njit(cache=True, inline="always")
+def _aligned(pos: np.uint64) -> bool:
+    """True if ``pos`` holds four in a line (any direction)."""
+    for d in (1, H, H1, H + 2):  # vertical, the diagonal /, horizontal, the diagonal \
+        u = np.uint64(d)
+        m = pos & (pos >> u)
+        if m & (m >> np.uint64(2 * d)):
+            return True
+    return False
+
+
+@nb.njit(cache=True, inline="always")
+def _random_move(mask: np.uint64) -> np.uint64:
+    """The cell a uniformly random legal move fills (0 if the board is full)."""
+    possible = _possible(mask)
+    k = 0
+    for c in range(W):
+        if possible & _column(c):
+            k += 1
+    if k == 0:
+        return np.uint64(0)
+    r = np.random.randint(k)
+    for c in range(W):
+        mv = possible & _column(c)
+        if mv:
+            if r == 0:
+                return mv
+            r -= 1
+    return np.uint64(0)
+
+
 @nb.njit(cache=True)
-def rollout(cur: np.uint64, mask: np.uint64, n: int, seed: int) -> int:
-    """Play uniformly random moves to the end: +1 if the player to move now wins, -1, or 0."""
-    np.random.seed(seed)
+def _playout(cur: np.uint64, mask: np.uint64) -> int:
+    """Random play from a non-terminal position: +1 if the player to move wins, -1, 0 a draw."""
     sign = 1
-    cols = np.empty(W, dtype=np.int64)
-    while n < CELLS:
-        possible = _possible(mask)
-        k = 0
-        for c in range(W):
-            if possible & _column(c):
-                cols[k] = c
-                k += 1
-        mv = possible & _column(cols[np.random.randint(k)])
-        if winning_cells(cur, mask) & mv:
+    while True:
+        mv = _random_move(mask)
+        if mv == 0:
+            return 0
+        mask = mask | mv
+        if _aligned(cur | mv):
             return sign
-        cur, mask = cur ^ mask, mask | mv
-        n += 1
+        cur = (cur | mv) ^ mask  # the other player's stones: they move next
         sign = -sign
-    return 0
+
+
+@nb.njit(cache=True)
+def rollout(cur: np.uint64, mask: np.uint64, seed: int) -> int:
+    """Uniformly random moves to the end: +1 if the player to move now wins, -1, or 0."""
+    np.random.seed(seed)
+    return _playout(cur, mask)
+
+
+@nb.njit(cache=True)
+def _new_node(
+    i: int,
+    cur: np.uint64,
+    mask: np.uint64,
+    node_cur: NDArray[np.uint64],
+    node_mask: NDArray[np.uint64],
+    untried: NDArray[np.int8],
+    n_untried: NDArray[np.int64],
+) -> None:
+    """Node ``i`` for the position (cur, mask): its legal columns, shuffled, left to try."""
+    node_cur[i] = cur
+    node_mask[i] = mask
+    possible = _possible(mask)
+    k = 0
+    for c in range(W):
+        if possible & _column(c):
+            untried[i, k] = c
+            k += 1
+    for j in range(k - 1, 0, -1):  # Fisher-Yates
+        r = np.random.randint(j + 1)
+        t = untried[i, j]
+        untried[i, j] = untried[i, r]
+        untried[i, r] = t
+    n_untried[i] = k
+
+
+@nb.njit(cache=True)
+def uct_search(
+    cur: np.uint64, mask: np.uint64, simulations: int, c: float, seed: int
+) -> NDArray[np.int64]:
+    """UCT with random playouts from a non-terminal position: the root's visit counts per column.
+
+    The tree lives in arrays (one node per simulation at most). Selection descends
+    through nodes with no untried move by UCB1, ``w / n + c sqrt(ln N / n)``, each
+    node keeping the total outcome ``w`` for the player who moved into it; expansion
+    adds one child (the next of the node's shuffled legal columns); a playout of
+    uniformly random moves scores it (a finished game scores its outcome); the
+    outcome is backed up the path, negated at each level.
+    """
+    np.random.seed(seed)
+    size = simulations + 1
+    node_cur = np.empty(size, dtype=np.uint64)
+    node_mask = np.empty(size, dtype=np.uint64)
+    visits = np.zeros(size, dtype=np.int64)
+    total = np.zeros(size, dtype=np.float64)
+    terminal_value = np.zeros(size, dtype=np.float64)
+    is_terminal = np.zeros(size, dtype=np.bool_)
+    untried = np.empty((size, W), dtype=np.int8)
+    n_untried = np.zeros(size, dtype=np.int64)
+    children = np.empty((size, W), dtype=np.int64)  # in the order they were added
+    child_col = np.empty((size, W), dtype=np.int64)
+    n_children = np.zeros(size, dtype=np.int64)
+    path = np.empty(CELLS + 2, dtype=np.int64)
+    _new_node(0, cur, mask, node_cur, node_mask, untried, n_untried)
+    used = 1
+    for _ in range(simulations):
+        node = 0
+        depth = 0
+        path[0] = 0
+        while n_untried[node] == 0 and n_children[node] > 0:
+            log_n = np.log(visits[node])
+            best = -np.inf
+            best_child = node
+            for k in range(n_children[node]):
+                ch = children[node, k]
+                score = total[ch] / visits[ch] + c * np.sqrt(log_n / visits[ch])
+                if score > best:
+                    best = score
+                    best_child = ch
+            node = best_child
+            depth += 1
+            path[depth] = node
+        if n_untried[node] > 0:  # expansion
+            n_untried[node] -= 1
+            col = untried[node, n_untried[node]]
+            p_cur = node_cur[node]
+            p_mask = node_mask[node]
+            mv = _possible(p_mask) & _column(col)
+            new = used
+            used += 1
+            new_mask = p_mask | mv
+            new_cur = p_cur ^ p_mask  # the opponent moves next
+            n_new = _popcount(new_mask)
+            node_cur[new] = new_cur
+            node_mask[new] = new_mask
+            n_untried[new] = 0
+            if _aligned(p_cur | mv):
+                is_terminal[new] = True
+                terminal_value[new] = -1.0  # the player to move there has lost
+            elif n_new == CELLS:
+                is_terminal[new] = True
+                terminal_value[new] = 0.0
+            else:
+                is_terminal[new] = False
+                _new_node(new, new_cur, new_mask, node_cur, node_mask, untried, n_untried)
+            children[node, n_children[node]] = new
+            child_col[node, n_children[node]] = col
+            n_children[node] += 1
+            node = new
+            depth += 1
+            path[depth] = node
+        if is_terminal[node]:
+            value = terminal_value[node]
+        else:
+            value = float(_playout(node_cur[node], node_mask[node]))
+        for d in range(depth, -1, -1):  # each node keeps the outcome for who moved into it
+            value = -value
+            nd = path[d]
+            visits[nd] += 1
+            total[nd] += value
+    counts = np.zeros(W, dtype=np.int64)
+    for k in range(n_children[0]):
+        counts[child_col[0, k]] = visits[children[0, k]]
+    return counts

@@ -15,8 +15,10 @@ One iteration:
    with temperature 1 for the first moves, then taken greedily. Each position is
    stored with the search policy pi(a) = N(s0, a) / sum_b N(s0, b) and the final
    outcome z for the player to move there.
-2. **Training** on minibatches from the replay of recent games (mirrored boards
-   added) with the loss  (z - v)^2 - pi . log p  (plus weight decay).
+2. **Training** on minibatches from the replay of recent games (each sample in a
+   random one of the board's symmetries: the eight of the square for tic-tac-toe,
+   the mirror image for Connect Four) with the loss  (z - v)^2 - pi . log p  (plus
+   weight decay).
 3. **Evaluation**: the trained network plays the best one; it replaces the best if
    it scores at least ``accept_score`` (wins + draws / 2 over games).
 
@@ -35,7 +37,7 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from multiprocessing import active_children, get_context
 from pathlib import Path
@@ -62,11 +64,40 @@ __all__ = [
     "train_alphazero",
 ]
 
-MIRROR: dict[str, list[int]] = {
-    "tic-tac-toe": [2, 1, 0, 5, 4, 3, 8, 7, 6],
-    "connect-four": [6, 5, 4, 3, 2, 1, 0],
+SYMMETRIES: dict[str, tuple[tuple[int, bool], ...]] = {
+    "tic-tac-toe": tuple((k, f) for f in (False, True) for k in range(4)),
+    "connect-four": ((0, False), (0, True)),
 }
-"""The action each action becomes when the board is mirrored left to right."""
+"""The symmetries of each game's board: (quarter turns, mirrored first), the identity first.
+
+Tic-tac-toe has the eight of the square; Connect Four (gravity) only the mirror image.
+"""
+
+
+def transform_board(x: NDArray[Any], turns: int, mirrored: bool) -> NDArray[Any]:
+    """Boards ``x`` (..., rows, cols) mirrored left to right if asked, then turned by quarters."""
+    if mirrored:
+        x = x[..., ::-1]
+    return np.rot90(x, turns, axes=(-2, -1))
+
+
+def symmetries(game: Game) -> list[tuple[int, bool, NDArray[np.int64]]]:
+    """Each board symmetry of ``game`` with its action permutation.
+
+    A triple (turns, mirrored, perm): the board ``transform_board(x, turns, mirrored)``
+    has the search policy ``pi[perm]`` (action j of the new board is action perm[j] of
+    the old one).
+    """
+    if game.n_actions == game.rows * game.cols:  # one action per cell
+        grid = np.arange(game.n_actions).reshape(game.rows, game.cols)
+    else:  # one action per column
+        grid = np.tile(np.arange(game.cols), (game.rows, 1))
+    out = []
+    for turns, mirrored in SYMMETRIES[game.name]:
+        t = transform_board(grid, turns, mirrored)
+        perm = t.ravel() if game.n_actions == game.rows * game.cols else t[0]
+        out.append((turns, mirrored, np.ascontiguousarray(perm, dtype=np.int64)))
+    return out
 
 
 @dataclass(frozen=True)
@@ -94,6 +125,9 @@ class AlphaZeroConfig:
         eval_games: Games of the new network against the best per iteration (0: always accept).
         accept_score: Score (wins + draws / 2 per game) the new network needs to become best.
         workers: Self-play processes (0: in this process).
+        parallel_games: Self-play games each process plays side by side, their search
+            leaves evaluated by the network in one batch (the same games whatever
+            ``workers`` is).
         seed: Seed of the whole run.
     """
 
@@ -116,6 +150,7 @@ class AlphaZeroConfig:
     eval_games: int = 20
     accept_score: float = 0.55
     workers: int = 2
+    parallel_games: int = 32
     seed: int = 0
 
     def validate(self) -> None:
@@ -129,6 +164,7 @@ class AlphaZeroConfig:
             "train_steps",
             "batch_size",
             "channels",
+            "parallel_games",
         ]
         for name in positive:
             v = getattr(self, name)
@@ -170,7 +206,9 @@ def default_config(game: str | Game, **overrides: Any) -> AlphaZeroConfig:
             simulations=50,
             eval_simulations=50,
             dirichlet_alpha=1.0,
-            temperature_moves=4,
+            # every move sampled: greedy late moves never show the network a fork it
+            # walked into, and it rated such lost positions as won
+            temperature_moves=9,
             replay_games=600,
             train_steps=200,
             batch_size=128,
@@ -179,6 +217,25 @@ def default_config(game: str | Game, **overrides: Any) -> AlphaZeroConfig:
             eval_games=10,
             accept_score=0.5,  # good players draw every game: a draw-level score is enough
             random_openings=0.5,
+        )
+    elif g.name == "connect-four":
+        # about 90 minutes on one core of a laptop-class CPU: a small residual network
+        # (48 channels, 3 blocks) whose leaves are evaluated 48 games at a time
+        base = dict(
+            iterations=50,
+            games_per_iteration=96,
+            simulations=100,
+            eval_simulations=200,
+            dirichlet_alpha=1.0,
+            temperature_moves=12,
+            replay_games=1000,
+            train_steps=100,
+            batch_size=256,
+            channels=48,
+            blocks=3,
+            eval_games=0,  # a short run gains more from games than from gating them
+            workers=1,
+            parallel_games=48,
         )
     known = {f.name for f in dataclasses.fields(AlphaZeroConfig)}
     bad = set(overrides) - known
@@ -245,23 +302,28 @@ def make_network(game: Game, channels: int, blocks: int) -> torch.nn.Module:
     return Net()
 
 
-Evaluator = Callable[[GameState], tuple[NDArray[np.float64], float]]
+Evaluator = Callable[[Sequence[GameState]], tuple[NDArray[np.float64], NDArray[np.float64]]]
+"""A batch of positions -> (priors (B, actions), zero on illegal moves; values (B,)).
+
+Values are for the player to move in each position.
+"""
 
 
 def net_evaluator(net: torch.nn.Module) -> Evaluator:
-    """(priors over legal moves, value for the player to move) of a position by ``net``."""
+    """The network's priors over legal moves and values, in one forward pass per batch."""
     import torch
 
     net.eval()
 
-    def evaluate(state: GameState) -> tuple[NDArray[np.float64], float]:
+    def evaluate(states: Sequence[GameState]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        x = np.stack([s.encode() for s in states])
         with torch.inference_mode():
-            logits, v = net(torch.from_numpy(state.encode()[None]))
-        lg = logits[0].double().numpy()
-        mask = state.action_mask().astype(bool)
+            logits, v = net(torch.from_numpy(x))
+        lg = logits.double().numpy()
+        mask = np.stack([s.action_mask() for s in states]).astype(bool)
         lg = np.where(mask, lg, -np.inf)
-        p = np.exp(lg - lg.max())
-        return p / p.sum(), float(v[0])
+        p = np.exp(lg - lg.max(axis=1, keepdims=True))
+        return p / p.sum(axis=1, keepdims=True), v.double().numpy()
 
     return evaluate
 
@@ -270,20 +332,49 @@ def net_evaluator(net: torch.nn.Module) -> Evaluator:
 
 
 class _Node:
-    __slots__ = ("children", "expanded", "n", "p", "state", "w")
+    """A position in the search tree; the edge statistics are per legal move, in order."""
+
+    __slots__ = ("children", "legal", "n", "p", "state", "terminal", "total", "value", "w")
 
     def __init__(self, state: GameState) -> None:
         self.state = state
-        self.expanded = False
-        k = state.game.n_actions
-        self.p = np.zeros(k)
-        self.n = np.zeros(k)
-        self.w = np.zeros(k)
-        self.children: dict[int, _Node] = {}
+        self.terminal = state.is_terminal()
+        self.value = state.outcome(state.player) if self.terminal else 0.0
+        self.legal = state.legal_actions()
+        k = len(self.legal)
+        self.p: list[float] = []  # filled when the network expands the node
+        self.n = [0] * k
+        self.w = [0.0] * k
+        self.total = 0
+        self.children: list[_Node | None] = [None] * k
+
+    def select(self, c_puct: float) -> int:
+        """The index (into ``legal``) of the move with the largest Q + U (the first among ties)."""
+        sq = c_puct * math.sqrt(max(self.total, 1))
+        best, best_i = -math.inf, 0
+        for i, (n, w, p) in enumerate(zip(self.n, self.w, self.p, strict=True)):
+            score = (w / n if n else 0.0) + sq * p / (1 + n)
+            if score > best:
+                best, best_i = score, i
+        return best_i
+
+
+def _backup(path: list[tuple[_Node, int]], value: float) -> None:
+    """Back ``value`` (for the player to move at the leaf) up ``path``, negated at each level."""
+    for node, i in reversed(path):
+        value = -value
+        node.n[i] += 1
+        node.w[i] += value
+        node.total += 1
 
 
 class PUCT:
-    """AlphaZero's tree search: PUCT selection, network priors and values at the leaves."""
+    """AlphaZero's tree search: PUCT selection, network priors and values at the leaves.
+
+    :meth:`visit_counts_many` searches several positions at once (the self-play games
+    of one process) and evaluates their leaves in one batch: one forward pass of the
+    network per simulation for all of them, instead of one per position.
+    """
 
     def __init__(self, evaluate: Evaluator, simulations: int, c_puct: float = 1.5) -> None:
         if simulations < 1:
@@ -292,15 +383,6 @@ class PUCT:
         self.simulations = simulations
         self.c_puct = c_puct
 
-    def _expand(self, node: _Node) -> float:
-        s = node.state
-        if s.is_terminal():
-            return s.outcome(s.player)
-        p, v = self.evaluate(s)
-        node.p = p
-        node.expanded = True
-        return v
-
     def visit_counts(
         self,
         state: GameState,
@@ -308,42 +390,72 @@ class PUCT:
         rng: np.random.Generator | None = None,
     ) -> NDArray[np.float64]:
         """N(s0, a) after the search; ``noise`` = (alpha, eps) mixes Dirichlet noise into P(s0)."""
-        root = _Node(state)
-        self._expand(root)
-        legal = np.array(state.legal_actions())
-        if noise is not None and rng is not None:
-            alpha, eps = noise
-            d = rng.dirichlet([alpha] * len(legal))
-            root.p[legal] = (1 - eps) * root.p[legal] + eps * d
-        for _ in range(self.simulations):
-            node = root
-            path: list[tuple[_Node, int]] = []
-            while node.expanded:
-                s = node.state
-                acts = np.array(s.legal_actions())
-                q = np.where(node.n[acts] > 0, node.w[acts] / np.maximum(node.n[acts], 1), 0.0)
-                u = (
-                    self.c_puct
-                    * node.p[acts]
-                    * math.sqrt(max(node.n.sum(), 1.0))
-                    / (1 + node.n[acts])
+        counts: NDArray[np.float64] = self.visit_counts_many(
+            [state], noise, None if rng is None else [rng]
+        )[0]
+        return counts
+
+    def visit_counts_many(
+        self,
+        states: Sequence[GameState],
+        noise: tuple[float, float] | None = None,
+        rngs: Sequence[np.random.Generator] | None = None,
+    ) -> NDArray[np.float64]:
+        """N(s0, a) for each position (rows), searched side by side with batched leaves.
+
+        Args:
+            states: Non-terminal positions, each searched in its own tree.
+            noise: (alpha, eps): root priors P = (1 - eps) p + eps Dir(alpha), with
+                ``rngs[i]`` drawing the noise of ``states[i]``.
+            rngs: One generator per position (needed with ``noise``).
+
+        Raises:
+            InvalidArgumentError: If a position is over, or noise comes without generators.
+        """
+        for s in states:
+            if s.is_terminal():
+                raise InvalidArgumentError(
+                    f"{s.game.name}: cannot search from a finished game ({s.position_string()!r})"
                 )
-                a = int(acts[int(np.argmax(q + u))])
-                path.append((node, a))
-                child = node.children.get(a)
-                if child is None:
-                    child = _Node(s._apply(a))
-                    node.children[a] = child
+        if noise is not None and (rngs is None or len(rngs) != len(states)):
+            raise InvalidArgumentError("PUCT: root noise needs one generator per position")
+        roots = [_Node(s) for s in states]
+        p, _ = self.evaluate(states)
+        for k, root in enumerate(roots):
+            pr = p[k, list(root.legal)]
+            if noise is not None and rngs is not None:
+                alpha, eps = noise
+                pr = (1 - eps) * pr + eps * rngs[k].dirichlet([alpha] * len(root.legal))
+            root.p = pr.tolist()
+        c = self.c_puct
+        for _ in range(self.simulations):
+            leaves: list[tuple[_Node, list[tuple[_Node, int]]]] = []
+            for root in roots:
+                node, path = root, []
+                while True:
+                    i = node.select(c)
+                    path.append((node, i))
+                    child = node.children[i]
+                    if child is None:
+                        child = node.children[i] = _Node(node.state._apply(node.legal[i]))
+                        node = child
+                        break
                     node = child
-                    break
-                node = child
-            value = self._expand(node) if not node.expanded else 0.0
-            # value is for the player to move at the leaf; each edge stores it for the mover
-            for parent, a in reversed(path):
-                value = -value
-                parent.n[a] += 1
-                parent.w[a] += value
-        return root.n.copy()
+                    if node.terminal:
+                        break
+                if node.terminal:  # a finished game scores its outcome
+                    _backup(path, node.value)
+                else:
+                    leaves.append((node, path))
+            if leaves:
+                p, v = self.evaluate([leaf.state for leaf, _ in leaves])
+                for k, (leaf, path) in enumerate(leaves):
+                    leaf.p = p[k, list(leaf.legal)].tolist()
+                    _backup(path, float(v[k]))
+        counts = np.zeros((len(states), states[0].game.n_actions) if states else (0, 0))
+        for k, root in enumerate(roots):
+            counts[k, list(root.legal)] = root.n
+        return counts
 
 
 class AlphaZeroPlayer:
@@ -364,10 +476,15 @@ class AlphaZeroPlayer:
 
     def choose(self, state: GameState) -> int:
         """The most visited move (the first among ties); torch on one thread (small nets)."""
+        return self.choose_many([state])[0]
+
+    def choose_many(self, states: Sequence[GameState]) -> list[int]:
+        """:meth:`choose` in each position, searched side by side (leaves in one batch)."""
         from policylab.deep.common.agent import _TorchThreads
 
         with _TorchThreads(1):
-            return int(np.argmax(self.search.visit_counts(state)))
+            counts = self.search.visit_counts_many(states)
+        return [int(np.argmax(row)) for row in counts]
 
     @classmethod
     def from_checkpoint(
@@ -393,31 +510,65 @@ class AlphaZeroPlayer:
 # ---------------------------------------------------------------- self-play
 
 
-def play_selfplay_game(
-    game: Game, evaluate: Evaluator, cfg: AlphaZeroConfig, seed: int
-) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
-    """One self-play game: (planes, search policies, outcomes for the player to move)."""
-    rng = np.random.default_rng(seed)
+SelfPlayGame = tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]
+"""One self-play game: (planes, search policies, outcomes for the player to move)."""
+
+
+def play_selfplay_games(
+    game: Game, evaluate: Evaluator, cfg: AlphaZeroConfig, seeds: Sequence[int]
+) -> list[SelfPlayGame]:
+    """Self-play games, one per seed, played side by side (their leaves evaluated in batches).
+
+    Each game draws its opening, root noise and sampled moves from its own generator
+    (seeded by its seed), so a game does not depend on the others it is played with
+    beyond the rounding of the batched network evaluation.
+    """
+    rngs = [np.random.default_rng(s) for s in seeds]
     search = PUCT(evaluate, cfg.simulations, cfg.c_puct)
-    s = game.initial()
-    if rng.random() < cfg.random_openings:
-        for _ in range(2):
-            s = s.play(int(rng.choice(s.legal_actions())))
-    planes, pis, players = [], [], []
-    while not s.is_terminal():
-        counts = search.visit_counts(s, (cfg.dirichlet_alpha, cfg.noise_fraction), rng)
-        pi = counts / counts.sum()
-        planes.append(s.encode())
-        pis.append(pi.astype(np.float32))
-        players.append(s.player)
-        if len(s.moves) < cfg.temperature_moves:
-            a = int(rng.choice(len(pi), p=pi))
+    states: list[GameState] = []
+    for rng in rngs:
+        s = game.initial()
+        if rng.random() < cfg.random_openings:
+            for _ in range(2):
+                s = s.play(int(rng.choice(s.legal_actions())))
+        states.append(s)
+    planes: list[list[NDArray[np.float32]]] = [[] for _ in seeds]
+    pis: list[list[NDArray[np.float32]]] = [[] for _ in seeds]
+    players: list[list[int]] = [[] for _ in seeds]
+    live = [i for i, s in enumerate(states) if not s.is_terminal()]
+    while live:
+        counts = search.visit_counts_many(
+            [states[i] for i in live],
+            (cfg.dirichlet_alpha, cfg.noise_fraction),
+            [rngs[i] for i in live],
+        )
+        for row, i in zip(counts, live, strict=True):
+            s, rng = states[i], rngs[i]
+            pi = row / row.sum()
+            planes[i].append(s.encode())
+            pis[i].append(pi.astype(np.float32))
+            players[i].append(s.player)
+            if len(s.moves) < cfg.temperature_moves:
+                a = int(rng.choice(len(pi), p=pi))
+            else:
+                best = np.flatnonzero(row == row.max())
+                a = int(best[rng.integers(len(best))])
+            states[i] = s.play(a)
+        live = [i for i in live if not states[i].is_terminal()]
+    out = []
+    for i, s in enumerate(states):
+        z = np.array([s.outcome(p) for p in players[i]], dtype=np.float32)
+        if not players[i]:  # a game the random opening ended (not on these boards)
+            out.append(
+                (
+                    np.zeros((0, 2, game.rows, game.cols), np.float32),
+                    np.zeros((0, game.n_actions), np.float32),
+                    z,
+                )
+            )
         else:
-            best = np.flatnonzero(counts == counts.max())
-            a = int(best[rng.integers(len(best))])
-        s = s.play(a)
-    z = np.array([s.outcome(p) for p in players], dtype=np.float32)
-    return np.stack(planes), np.stack(pis), z
+            out.append((np.stack(planes[i]), np.stack(pis[i]), z))
+    return out
 
 
 def _worker_init(parent: int) -> None:
@@ -440,8 +591,12 @@ def _worker_init(parent: int) -> None:
 
 
 def _worker_games(
-    game_name: str, cfg_dict: dict[str, Any], weights: dict[str, NDArray[Any]], seeds: list[int]
-) -> list[tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]]:
+    game_name: str,
+    cfg_dict: dict[str, Any],
+    weights: dict[str, NDArray[Any]],
+    batches: list[list[int]],
+) -> list[SelfPlayGame]:
+    """A self-play worker's share: batches of seeds, each batch played side by side."""
     import torch
 
     torch.set_num_threads(1)
@@ -450,24 +605,27 @@ def _worker_games(
     net = make_network(game, cfg.channels, cfg.blocks)
     net.load_state_dict({k: torch.from_numpy(v) for k, v in weights.items()})
     ev = net_evaluator(net)
-    return [play_selfplay_game(game, ev, cfg, s) for s in seeds]
+    return [g for seeds in batches for g in play_selfplay_games(game, ev, cfg, seeds)]
 
 
 def _match(game: Game, a: AlphaZeroPlayer, b: AlphaZeroPlayer, games: int, seed: int) -> float:
-    """A's score (wins + draws / 2 per game); the first two moves of each game are random."""
+    """A's score (wins + draws / 2 per game); the first two moves of each game are random.
+
+    A moves first in the even games (before the random moves); the games are played
+    side by side, each player searching all its positions of a turn together.
+    """
+    from policylab.games.arena import play_side_by_side
+
     rng = np.random.default_rng(seed)
-    score = 0.0
-    for i in range(games):
+    starts: list[GameState] = []
+    for _ in range(games):
         s = game.initial()
         for _ in range(2):
             s = s.play(int(rng.choice(s.legal_actions())))
-        first = (a, b) if i % 2 == 0 else (b, a)
-        offset = len(s.moves)
-        while not s.is_terminal():
-            s = s.play(first[(len(s.moves) - offset) % 2].choose(s))
-        a_player = offset % 2 if i % 2 == 0 else 1 - offset % 2
-        score += (s.outcome(a_player) + 1) / 2
-    return score / games
+        starts.append(s)
+    colours = [i % 2 for i in range(games)]
+    ends = play_side_by_side(starts, a, b, colours)
+    return sum((s.outcome(c) + 1) / 2 for s, c in zip(ends, colours, strict=True)) / games
 
 
 # ---------------------------------------------------------------- training loop
@@ -548,7 +706,7 @@ def train_alphazero(
             history = list(meta.get("history", []))
         else:
             best.load_state_dict(net.state_dict())
-        mirror = np.array(MIRROR[g.name])
+        syms = symmetries(g)
         logger = RunLogger(rd, resume_step=done if resume else None)  # cut back to `done`
         pool = (
             get_context("spawn").Pool(cfg.workers, _worker_init, (os.getpid(),))
@@ -605,17 +763,19 @@ def train_alphazero(
                     seeds = [
                         int(x) for x in ss.generate_state(cfg.games_per_iteration) % (2**31 - 1)
                     ]
+                    size = cfg.parallel_games
+                    batches = [seeds[i : i + size] for i in range(0, len(seeds), size)]
                     if pool is None:
                         ev = net_evaluator(best)
                         new_games = []
-                        for s in seeds:
+                        for batch in batches:
                             stop_if_interrupted(it)
-                            new_games.append(play_selfplay_game(g, ev, cfg, s))
+                            new_games += play_selfplay_games(g, ev, cfg, batch)
                     else:
                         weights = {
                             k: v.detach().numpy().copy() for k, v in best.state_dict().items()
                         }
-                        chunks = [seeds[i :: cfg.workers] for i in range(cfg.workers)]
+                        chunks = [batches[i :: cfg.workers] for i in range(cfg.workers)]
                         chunks = [c for c in chunks if c]
                         pending = [
                             pool.apply_async(
@@ -635,8 +795,8 @@ def train_alphazero(
                                 r.wait(0.1)
                         by_seed = {
                             s: r
-                            for c, p in zip(chunks, [r.get() for r in pending], strict=True)
-                            for s, r in zip(c, p, strict=True)
+                            for c, res in zip(chunks, [r.get() for r in pending], strict=True)
+                            for s, r in zip([s for b in c for s in b], res, strict=True)
                         }
                         new_games = [by_seed[s] for s in seeds]
                     t_play = time.perf_counter() - t0
@@ -651,9 +811,12 @@ def train_alphazero(
                         stop_if_interrupted(it)
                         idx = rng.integers(len(zs), size=min(cfg.batch_size, len(zs)))
                         x, p, z = planes[idx].copy(), pis[idx].copy(), zs[idx]
-                        flip = rng.random(len(idx)) < 0.5  # the mirrored board is as good a sample
-                        x[flip] = x[flip][..., ::-1]
-                        p[flip] = p[flip][:, mirror]
+                        # a board's symmetric images are as good samples (their policies permuted)
+                        which = rng.integers(len(syms), size=len(idx))
+                        for j, (turns, mirrored, perm) in enumerate(syms[1:], start=1):
+                            sel = which == j
+                            x[sel] = transform_board(x[sel], turns, mirrored)
+                            p[sel] = p[sel][:, perm]
                         xt, pt, zt = torch.from_numpy(x), torch.from_numpy(p), torch.from_numpy(z)
                         logits, v = net(xt)
                         loss_v = torch.mean((zt - v) ** 2)

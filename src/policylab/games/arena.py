@@ -108,27 +108,89 @@ def worst_outcome(
     )
 
 
+def _choose_all(player: Player, states: list[GameState]) -> list[int]:
+    """``player``'s move in each position: one batched call if it has ``choose_many``."""
+    many = getattr(player, "choose_many", None)
+    if many is not None:
+        return [int(m) for m in many(states)]
+    return [player.choose(s) for s in states]
+
+
+def play_side_by_side(
+    starts: list[GameState],
+    a: Player,
+    b: Player,
+    a_colours: list[int],
+    on_game: Callable[[int], None] | None = None,
+) -> list[GameState]:
+    """Play every game from its start to the end at once; the final positions, in order.
+
+    A plays colour ``a_colours[i]`` (0 moves first) in game i. A player with a
+    ``choose_many(states)`` method gets all its positions of a turn in one call (an
+    AlphaZero player searches them together, its network evaluating their leaves in one
+    batch); others are asked position by position. ``on_game`` gets the number of games
+    finished whenever it grows.
+    """
+    states = list(starts)
+    live = [i for i, s in enumerate(states) if not s.is_terminal()]
+    finished = len(states) - len(live)
+    while live:
+        for player, a_moves in ((a, True), (b, False)):
+            idx = [
+                i
+                for i in live
+                if not states[i].is_terminal() and (states[i].player == a_colours[i]) == a_moves
+            ]
+            if idx:
+                for i, m in zip(idx, _choose_all(player, [states[i] for i in idx]), strict=True):
+                    states[i] = states[i].play(m)
+        live = [i for i in live if not states[i].is_terminal()]
+        if on_game is not None and len(states) - len(live) > finished:
+            finished = len(states) - len(live)
+            on_game(finished)
+    return states
+
+
 def arena(
     game: Game,
     a: Player,
     b: Player,
     games: int,
     on_game: Callable[[int], None] | None = None,
+    finals: list[GameState] | None = None,
 ) -> ArenaResult:
-    """Play ``games`` games, A moving first in the even-numbered ones; results from A's view."""
+    """Play ``games`` games, A moving first in the even-numbered ones; results from A's view.
+
+    Args:
+        game: The game.
+        a: Player A (the results are from A's view).
+        b: Player B.
+        games: Games to play; colours alternate.
+        on_game: Called with the number of games finished so far.
+        finals: If given, the final position of every game is appended to it, in order.
+
+    If either player has ``choose_many`` (an AlphaZero player), the games are played side
+    by side (:func:`play_side_by_side`), else one after the other.
+    """
     if not isinstance(games, int) or games < 1:
         raise InvalidArgumentError(f"--games must be a positive integer; got {games!r}")
-    w = d = lo = 0
-    for i in range(games):
-        a_first = i % 2 == 0
-        end = play_game(a, b, game.initial()) if a_first else play_game(b, a, game.initial())
-        r = end.outcome(0 if a_first else 1)
-        if r > 0:
-            w += 1
-        elif r < 0:
-            lo += 1
-        else:
-            d += 1
-        if on_game is not None:
-            on_game(i + 1)
-    return ArenaResult(a.name, b.name, w, d, lo)
+    colours = [i % 2 for i in range(games)]  # A's colour: first in the even games
+    if hasattr(a, "choose_many") or hasattr(b, "choose_many"):
+        ends = play_side_by_side([game.initial() for _ in range(games)], a, b, colours, on_game)
+    else:
+        ends = []
+        for i in range(games):
+            first, second = (a, b) if colours[i] == 0 else (b, a)
+            ends.append(play_game(first, second, game.initial()))
+            if on_game is not None:
+                on_game(i + 1)
+    outcomes = [end.outcome(c) for end, c in zip(ends, colours, strict=True)]
+    if finals is not None:
+        finals.extend(ends)
+    return ArenaResult(
+        a.name,
+        b.name,
+        sum(r > 0 for r in outcomes),
+        sum(r == 0 for r in outcomes),
+        sum(r < 0 for r in outcomes),
+    )

@@ -21,6 +21,10 @@ COLS = 7
 _H1 = ROWS + 1
 _BOTTOM = sum(1 << (c * _H1) for c in range(COLS))
 _BOARD = _BOTTOM * ((1 << ROWS) - 1)
+_CELL_BITS = np.array(
+    [[c * _H1 + ROWS - 1 - r for c in range(COLS)] for r in range(ROWS)], dtype=np.uint64
+)
+"""The bit of each cell, rows from the top down (the layout of :meth:`encode`)."""
 
 
 def has_four(bits: int) -> bool:
@@ -88,14 +92,8 @@ class ConnectFourState(GameState):
 
     def encode(self) -> NDArray[np.float32]:
         """Planes (2, 6, 7) from the top row down: the player to move's stones, then the other's."""
-        out = np.zeros((2, ROWS, COLS), dtype=np.float32)
-        other = self.current ^ self.mask
-        for c in range(COLS):
-            for r in range(ROWS):
-                bit = 1 << (c * _H1 + r)
-                out[0, ROWS - 1 - r, c] = 1.0 if self.current & bit else 0.0
-                out[1, ROWS - 1 - r, c] = 1.0 if other & bit else 0.0
-        return out
+        bits = np.array([self.current, self.current ^ self.mask], dtype=np.uint64)
+        return ((bits[:, None, None] >> _CELL_BITS) & np.uint64(1)).astype(np.float32)
 
     def __str__(self) -> str:
         sym = {None: ".", 0: "X", 1: "O"}

@@ -6,9 +6,10 @@ confidence bound (UCB1)
     Q(s, a) + c * sqrt(ln N(s) / N(s, a)),
 
 adds one new child, plays uniformly random moves from it to the end of the game
-(a rollout; compiled for Connect Four) and backs the outcome up the path, each node
-keeping the mean outcome for the player who moved into it. The move played is the
-most visited child of the root.
+(a rollout) and backs the outcome up the path, each node keeping the mean outcome
+for the player who moved into it. The move played is the most visited child of the
+root. On Connect Four the whole search is compiled (:func:`policylab.games._c4.uct_search`:
+the tree in arrays, playouts on the bitboards); other games run it in Python.
 """
 
 from __future__ import annotations
@@ -36,7 +37,6 @@ def rollout_outcome(state: GameState, rng: np.random.Generator) -> float:
             _c4.rollout(
                 np.uint64(state.current),
                 np.uint64(state.mask),
-                len(state.moves),
                 int(rng.integers(2**31 - 1)),
             )
         )
@@ -90,6 +90,16 @@ class UCT:
             raise InvalidArgumentError(
                 f"{state.game.name}: cannot search from a finished game "
                 f"({state.position_string()!r})"
+            )
+        if isinstance(state, ConnectFourState):  # the same search, compiled
+            from policylab.games import _c4
+
+            return _c4.uct_search(
+                np.uint64(state.current),
+                np.uint64(state.mask),
+                self.simulations,
+                float(self.c),
+                int(self.rng.integers(2**31 - 1)),
             )
         root = _Node(state, self.rng)
         for _ in range(self.simulations):

@@ -27,7 +27,10 @@ def two_nodes():
     cluster.shutdown()
 
 
-def test_a_sweep_runs_on_both_nodes(two_nodes, tmp_path):
+def test_a_sweep_runs_on_both_nodes(two_nodes, tmp_path, monkeypatch):
+    # each trial waits 3 s first, so the second starts on the other node while the first
+    # runs (tabular trials reuse their worker, which could otherwise serve them all)
+    monkeypatch.setenv("POLICYLAB_SWEEP_TRIAL_DELAY", "3")
     nodes = {n["NodeID"] for n in ray.nodes() if n["Alive"]}
     assert len(nodes) == 2
     doc = sweep(

@@ -5,6 +5,10 @@ non-terminal states (terminal states have value 0):
 
 * small systems (``solver="direct"``, the default below :data:`DIRECT_MAX_STATES`
   non-terminal states): a sparse LU factorisation (SuperLU), exact to rounding;
+  with ``solver="auto"``, gamma < 1 and a deterministic policy whose dense S x S
+  matrix is no larger than the model itself (at most :data:`DENSE_MAX_STATES`
+  states, dense rows as in inventories and car rentals), a dense LU (LAPACK) of
+  I - gamma P_pi built straight from the outcome table instead;
 * large systems (``solver="auto"`` above that size, gamma < 1): synchronous sweeps
   v <- r_pi + gamma P_pi v, warm-started, stopped by MacQueen's bounds (the same rule
   as value iteration) as soon as max_s |v(s) - v_pi(s)| <= tol is proven; the
@@ -45,7 +49,11 @@ from policylab.planning._checks import (
     check_v,
     require_terminal_reachable,
 )
-from policylab.planning._kernels import gauss_seidel_expectation_sweep, policy_matvec
+from policylab.planning._kernels import (
+    dense_policy_system,
+    gauss_seidel_expectation_sweep,
+    policy_matvec,
+)
 from policylab.planning._sweeps import run_sweeps, span_bounds
 from policylab.planning.bellman import _policy_matrix, _q
 from policylab.planning.result import PlanningResult
@@ -55,10 +63,14 @@ if TYPE_CHECKING:
 
     from policylab.mdp.finite import FiniteMDP
 
-__all__ = ["DIRECT_MAX_STATES", "evaluate_policy", "solve_policy_system"]
+__all__ = ["DENSE_MAX_STATES", "DIRECT_MAX_STATES", "evaluate_policy", "solve_policy_system"]
 
 #: Below this many non-terminal states, ``solver="auto"`` uses the sparse LU.
 DIRECT_MAX_STATES = 5000
+
+#: ``solver="auto"``: the most states for a dense LU (when the dense matrix is no
+#: larger than the model).
+DENSE_MAX_STATES = 3000
 
 #: ``solver="auto"``: up to this many non-terminal states, a system that the sweeps do
 #: not finish goes to the sparse LU directly (above it, GMRES first).
@@ -128,7 +140,18 @@ def solve_policy_system(
         solver == "auto" and int((~mdp.terminal).sum()) <= DIRECT_MAX_STATES
     )
     x: NDArray[np.float64] | None = None
-    if not use_direct:
+    if (
+        solver == "auto"
+        and gamma < 1.0
+        and actions is not None
+        and S <= DENSE_MAX_STATES
+        and mdp.nbytes >= 8 * S * S
+    ):
+        Md = dense_policy_system(mdp, actions, gamma)
+        x = np.asarray(np.linalg.solve(Md, b), dtype=np.float64)
+        res = float(np.abs(b - Md @ x).max(initial=0.0))
+        info.update(solver="direct (dense LU)", residual=res, error_bound=res / (1.0 - gamma))
+    if not use_direct and x is None:
         if actions is not None:
             acts = np.ascontiguousarray(actions, dtype=np.int64)
 

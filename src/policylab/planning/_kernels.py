@@ -477,8 +477,9 @@ def _distinct_rows(
     # Open-addressing hash table over the rows (keys: next states and the probabilities'
     # bit patterns, compared exactly, entry by entry). Returns (number of distinct
     # rows, row -> distinct id, representative row of each id), or n = -1 as soon as
-    # the distinct rows hold more than ``max_fraction`` of all outcomes, or of those of
-    # the first quarter of the rows once it is read (too little sharing to pay off).
+    # the distinct rows hold more than ``max_fraction`` of all outcomes, or (tables of
+    # 10^6 outcomes or more) of those of the first quarter of the rows once it is read:
+    # too little sharing to pay off.
     n_rows = indptr.shape[0] - 1
     size = 1
     while size < 2 * n_rows:
@@ -487,7 +488,7 @@ def _distinct_rows(
     row_of = np.empty(n_rows, dtype=np.int64)
     reps = np.empty(n_rows, dtype=np.int64)
     n = 0
-    kept = 0
+    kept = np.int64(0)
     max_outcomes = max_fraction * np.float64(indptr[n_rows])
     for row in range(n_rows):
         lo, hi = np.int64(indptr[row]), np.int64(indptr[row + 1])
@@ -512,8 +513,8 @@ def _distinct_rows(
             rlo = np.int64(indptr[r])
             same = np.int64(indptr[r + 1]) - rlo == hi - lo
             if same:
-                for k in range(hi - lo):
-                    if nxt[rlo + k] != nxt[lo + k] or pbits[rlo + k] != pbits[lo + k]:
+                for e in range(hi - lo):
+                    if nxt[rlo + e] != nxt[lo + e] or pbits[rlo + e] != pbits[lo + e]:
                         same = False
                         break
             if same:
@@ -521,7 +522,9 @@ def _distinct_rows(
                 break
             slot = (slot + 1) & (size - 1)
         if kept > max_outcomes or (
-            row == n_rows // 4 and kept > max_fraction * np.float64(indptr[row + 1])
+            row == n_rows // 4
+            and indptr[n_rows] >= 1_000_000
+            and kept > max_fraction * np.float64(indptr[row + 1])
         ):
             return -1, row_of, reps
     return n, row_of, reps
@@ -540,9 +543,9 @@ class SharedRows(NamedTuple):
     row_of: np.ndarray
 
 
-#: Look for shared rows only when rows hold at least this many outcomes on average
-#: (on shorter rows the per-row work dominates and the saving is small).
-SHARED_MIN_ROW = 8
+#: Look for shared rows only when the non-empty rows hold at least this many outcomes
+#: on average (on shorter rows the per-row work dominates and the saving is small).
+SHARED_MIN_ROW = 4
 #: Use them only when the distinct rows hold at most this fraction of the outcomes.
 SHARED_MAX_FRACTION = 0.5
 
@@ -554,13 +557,13 @@ def shared_rows(mdp: Any) -> SharedRows | None:
 
     Found once per model (one pass over the outcome table with a hash table, rows
     compared exactly) and kept with it; None when rows are short (fewer than
-    :data:`SHARED_MIN_ROW` outcomes on average) or when the distinct rows hold more
-    than :data:`SHARED_MAX_FRACTION` of the outcomes.
+    :data:`SHARED_MIN_ROW` outcomes on average over the non-empty rows) or when the
+    distinct rows hold more than :data:`SHARED_MAX_FRACTION` of the outcomes.
     """
     if mdp in _SHARED:
         return _SHARED[mdp]
     found: SharedRows | None = None
-    n_rows = mdp.n_states * mdp.n_actions
+    n_rows = int(np.count_nonzero(mdp.indptr[1:] != mdp.indptr[:-1]))
     if mdp.n_outcomes >= SHARED_MIN_ROW * n_rows:
         n, row_of, reps = _distinct_rows(
             mdp.indptr,

@@ -127,9 +127,13 @@ def _grid6() -> Any:
 # hang in C code (past the per-method alarm) on large random graphs.
 METHODS = {
     "policylab": ["auto", "vi", "vi-gs", "pi", "mpi"],
+    "policylab, 2 threads": ["auto", "vi", "mpi"],
     "quantecon": ["vi", "mpi", "pi"],
     "mdptoolbox-hiive": ["vi", "vi-gs", "mpi", "pi"],
 }
+#: numba threads of each library's worker (every other library is single-threaded:
+#: BLAS and OpenMP pools are held to one thread in all workers).
+THREADS = {"policylab, 2 threads": 2}
 NAMES = {
     "auto": "auto",
     "vi": "value iteration",
@@ -137,6 +141,13 @@ NAMES = {
     "pi": "policy iteration",
     "mpi": "modified policy iteration",
 }
+
+
+def method_name(lib: str, method: str) -> str:
+    """The method's name in the tables (policylab's MPI adapts m; quantecon's uses k = 20)."""
+    if lib.startswith("policylab") and method == "mpi":
+        return "modified policy iteration (adaptive m)"
+    return NAMES[method]
 
 
 class RssPeak:
@@ -225,7 +236,8 @@ def worker(lib: str, fam: str, out: str) -> None:
 
     t0 = time.perf_counter()
     first = None
-    if lib == "policylab":
+    ours_lib = lib.startswith("policylab")
+    if ours_lib:
         small = pl.problems.random_mdp(50, 2, 3)
         pl.value_iteration(small)  # the first compiled call of a fresh process
         first = time.perf_counter() - t0
@@ -237,8 +249,8 @@ def worker(lib: str, fam: str, out: str) -> None:
     results: dict[str, Any] = {"_floor": floor, "_model_mb": mdp.nbytes / 2**20, "_first": first}
     runs: dict[str, Callable[[], tuple[np.ndarray, np.ndarray, int, str]]] = {}
     sweep: dict[str, Callable[[], Any]] = {}
-    if lib == "policylab":
-        from policylab.planning import modified_policy_iteration, solve
+    if ours_lib:
+        from policylab.planning import _kernels, modified_policy_iteration, solve
         from policylab.planning._kernels import optimality_sweep
 
         for name in ("slip-gridworld", "long-chain"):
@@ -246,10 +258,20 @@ def worker(lib: str, fam: str, out: str) -> None:
             solve(warm, "vi-gs")
             pl.policy_iteration(warm, solver="krylov")
             modified_policy_iteration(warm)
+        # the shared-row and dense-LU paths, on small models of the same array types
+        for warm in (
+            pl.problems.inventory_management(capacity=15),
+            pl.problems.jacks_car_rental(max_cars=6, max_move=2),
+            pl.problems.random_mdp(300, 4, 10, seed=1),
+        ):
+            for method in METHODS[lib]:
+                solve(warm, method)
+            pl.policy_iteration(warm)
         mdp.__dict__.pop("transition_matrix", None)  # our solvers read the outcome table
 
         def ours(method: str) -> Callable[[], tuple[np.ndarray, np.ndarray, int, str]]:
             def run() -> tuple[np.ndarray, np.ndarray, int, str]:
+                _kernels._SHARED.pop(mdp, None)  # each method finds the shared rows itself
                 res = solve(mdp, method, tol=TARGET)
                 note = res.info.get("auto", {}).get("method", "")
                 return res.v, res.policy.action_indices(), res.iterations, note
@@ -366,8 +388,12 @@ def run_worker(lib: str, fam: str, tmp: str) -> dict[str, Any]:
     out = os.path.join(tmp, f"{lib}-{fam}")
     cmd = [sys.executable, __file__, "--worker", lib, fam, out]
     hard = LIMIT * len(METHODS[lib]) + 120
+    env = dict(os.environ)
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        env[var] = "1"
+    env["NUMBA_NUM_THREADS"] = str(THREADS.get(lib, 1))
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=hard)
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=hard, env=env)
         err = "" if proc.returncode == 0 else (proc.stderr.strip().splitlines() or ["?"])[-1]
     except subprocess.TimeoutExpired:
         err = f"worker stopped after {hard:.0f} s"
@@ -437,8 +463,9 @@ def main() -> int:
     load_after = os.getloadavg()
     head = [
         "| family | policylab best | policylab auto (its choice) | quantecon best | "
-        "speed-up of auto over quantecon's best | mdptoolbox-hiive best |",
-        "|---|---|---|---|---:|---|",
+        "speed-up of auto over quantecon's best | auto on 2 threads (speed-up over 1) | "
+        "mdptoolbox-hiive best |",
+        "|---|---|---|---|---:|---|---|",
         *summary,
     ]
     load = (
@@ -457,7 +484,7 @@ def main() -> int:
 
 def _best(rows: list[tuple[str, str, dict[str, Any], Any]], lib: str) -> tuple[float, str] | None:
     ok = [
-        (r["seconds"], NAMES[m])
+        (r["seconds"], method_name(lb, m))
         for lb, m, r, _ in rows
         if lb == lib and r["status"] == "ok" and m != "auto" and r["policy_error"] <= TARGET
     ]
@@ -482,11 +509,11 @@ def table(
         if lib == "policylab" and data.get("_first") is not None:
             first = data["_first"]
         if r["status"] != "ok":
-            lines.append(f"| {lib} | {NAMES[method]} | {r['status']} | | | | | | |")
+            lines.append(f"| {lib} | {method_name(lib, method)} | {r['status']} | | | | | | |")
             continue
         sweep = f"{r['sweep'] / data['_floor']:.2f}x" if r.get("sweep") else ""
         ok = r["policy_error"] <= TARGET
-        name = NAMES[method] + (f" (chose {r['note']})" if r.get("note") else "")
+        name = method_name(lib, method) + (f" (chose {r['note']})" if r.get("note") else "")
         lines.append(
             f"| {lib} | {name} | {r['seconds']:.3g} | {r['iterations']} | {sweep} | "
             f"{r['value_error']:.1e} | {r['policy_error']:.1e} | {'yes' if ok else '**no**'} | "
@@ -499,10 +526,14 @@ def table(
         _best(rows, "quantecon"),
         _best(rows, "mdptoolbox-hiive"),
     )
-    auto = next(
-        (r for lb, m, r, _ in rows if lb == "policylab" and m == "auto" and r["status"] == "ok"),
-        None,
-    )
+
+    def auto_of(lib: str) -> dict[str, Any] | None:
+        return next(
+            (r for lb, m, r, _ in rows if lb == lib and m == "auto" and r["status"] == "ok"),
+            None,
+        )
+
+    auto, auto2 = auto_of("policylab"), auto_of("policylab, 2 threads")
 
     def fmt(b: tuple[float, str] | None) -> str:
         return "none within 1e-6" if b is None else f"{b[1]}, {b[0]:.3g} s"
@@ -511,7 +542,10 @@ def table(
     speed = ""
     if auto is not None and qe is not None:
         speed = f"{qe[0] / auto['seconds']:.1f}x"
-    summ = f"| {fam} | {fmt(ours)} | {auto_s} | {fmt(qe)} | {speed} | {fmt(hv)} |"
+    two = ""
+    if auto is not None and auto2 is not None:
+        two = f"{auto2['seconds']:.3g} s ({auto['seconds'] / auto2['seconds']:.2f}x)"
+    summ = f"| {fam} | {fmt(ours)} | {auto_s} | {fmt(qe)} | {speed} | {two} | {fmt(hv)} |"
     return "\n".join(lines), summ
 
 

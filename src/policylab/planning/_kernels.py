@@ -161,7 +161,7 @@ def gauss_seidel_expectation_sweep(
 #: model has at least this many outcomes; below it the thread start-up costs more than
 #: it saves. Every state's (or row's) value is computed by one thread, in the same order
 #: of terms as the sequential kernel, so the results are identical bit for bit.
-PARALLEL_MIN_OUTCOMES = 1_000_000
+PARALLEL_MIN_OUTCOMES = 250_000
 
 
 @njit(cache=True, nogil=True)

@@ -126,3 +126,25 @@ def test_adaptive_m_reaches_the_optimum_within_its_bound(build: object) -> None:
 def test_adaptive_m_rejects_other_words() -> None:
     with pytest.raises(InvalidArgumentError, match="'adaptive'"):
         modified_policy_iteration(random_mdp(5, 2, 2), m="auto")
+
+
+def test_back_substitution_solves_acyclic_policies_exactly() -> None:
+    from policylab.planning import proper_policy
+
+    for mdp, gamma in (
+        (slip_gridworld(8, 0.2, gamma=1.0), 1.0),
+        (slip_gridworld(8, 0.2, gamma=0.95), 0.95),
+    ):
+        acts = np.asarray(proper_policy(mdp).action_indices())
+        r_pi = mdp.expected_reward[np.arange(mdp.n_states), acts]
+        r_pi[mdp.terminal] = 0.0
+        tri, info = solve_policy_system(mdp, None, r_pi, gamma, actions=acts)
+        assert info["solver"] == "direct (back-substitution)"
+        lu, _ = solve_policy_system(mdp, None, r_pi, gamma, actions=acts, solver="direct")
+        assert np.max(np.abs(tri - lu)) <= 1e-10 * max(1.0, float(np.abs(lu).max()))
+        assert info["residual"] <= 1e-10
+    # a policy whose graph has cycles goes to the other solvers
+    mdp = random_mdp(50, 2, 3, seed=0)
+    acts = np.zeros(mdp.n_states, dtype=np.int64)
+    _, info = solve_policy_system(mdp, None, mdp.expected_reward[:, 0], 0.9, actions=acts)
+    assert info["solver"] != "direct (back-substitution)"

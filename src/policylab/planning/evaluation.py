@@ -3,6 +3,10 @@
 Exact evaluation solves the linear system (I - gamma P_pi) v = r_pi over the
 non-terminal states (terminal states have value 0):
 
+* a deterministic policy whose transitions, self-loops aside, form no cycle
+  (``solver="auto"``; proper policies that head for the goal on grids and chains):
+  back-substitution in the order that solves each state after its successors, exact
+  in one pass with no matrix and no fill-in;
 * small systems (``solver="direct"``, the default below :data:`DIRECT_MAX_STATES`
   non-terminal states): a sparse LU factorisation (SuperLU), exact to rounding;
   with ``solver="auto"``, gamma < 1 and a deterministic policy whose dense S x S
@@ -53,6 +57,7 @@ from policylab.planning._kernels import (
     dense_policy_system,
     gauss_seidel_expectation_sweep,
     policy_matvec,
+    triangular_policy_solve,
 )
 from policylab.planning._sweeps import run_sweeps, span_bounds
 from policylab.planning.bellman import _policy_matrix, _q
@@ -131,11 +136,23 @@ def solve_policy_system(
         w[live_idx, actions[live_idx]] = 1.0
         return _policy_matrix(mdp, w)
 
-    if gamma == 1.0:
-        require_terminal_reachable(mdp, matrix(), "the policy")
     b = np.array(r_pi, dtype=np.float64)
     b[mdp.terminal] = 0.0
     info: dict[str, Any] = {}
+    if solver == "auto" and actions is not None:
+        # An acyclic policy graph (self-loops aside) makes the system triangular:
+        # exact back-substitution in one pass, no matrix, no fill-in (and proper).
+        xt = triangular_policy_solve(mdp, actions, b, gamma)
+        if xt is not None:
+            res = float(np.abs(b - xt + gamma * policy_matvec(mdp, actions, xt)).max(initial=0.0))
+            info.update(
+                solver="direct (back-substitution)",
+                residual=res,
+                error_bound=res / (1.0 - gamma) if gamma < 1.0 else None,
+            )
+            return xt, info
+    if gamma == 1.0:
+        require_terminal_reachable(mdp, matrix(), "the policy")
     use_direct = solver == "direct" or (
         solver == "auto" and int((~mdp.terminal).sum()) <= DIRECT_MAX_STATES
     )

@@ -628,7 +628,7 @@ def _triangular_policy_solve(
     gamma: float,
     b: Any,
     x: Any,
-) -> bool:  # pragma: no cover - compiled
+) -> Any:  # pragma: no cover - compiled
     # Back-substitution of (I - gamma P_pi) x = b when the policy's graph, self-loops
     # aside, has no cycle: states are solved once all their successors are (Kahn's
     # algorithm on the reversed graph), each self-loop exactly. False on a cycle, or on

@@ -550,14 +550,20 @@ def table(
 
 
 NOTES = """Notes.
-- Time is the solve alone (input conversion excluded), single-threaded, best method
-  chosen after the fact (among those whose policy is within 1e-6 of optimal); "auto"
-  is policylab's own choice made before solving. Each library was asked for 1e-6
-  (policylab: tol on v, with a proven bound where gamma < 1; quantecon and hiive:
-  epsilon). "> 30 s (stopped)" means the method hit the time limit.
+- Time is the solve alone (input conversion excluded), best method chosen after the
+  fact (among those whose policy is within 1e-6 of optimal); "auto" is policylab's
+  own choice made before solving. Each library was asked for 1e-6 (policylab: tol on
+  v, with a proven bound where gamma < 1; quantecon and hiive: epsilon). "> 30 s
+  (stopped)" means the method hit the time limit. Every worker holds BLAS and OpenMP
+  to one thread; the "policylab" rows run numba on 1 thread, the "policylab, 2
+  threads" rows on 2 (threads are used by synchronous sweeps and policy evaluations
+  on models of 2,000,000 outcomes or more; Gauss-Seidel sweeps stay sequential).
+- Each policylab method finds the model's shared rows itself (the cache is cleared
+  before each method), so its time includes that one pass over the outcome table.
 - "one sweep / floor": the fastest of 7 synchronous Bellman optimality sweeps over
   the fastest of 7 bare scipy CSR products P @ v with the (S * A, S) matrix, both in
-  the same worker process.
+  the same worker process. Where rows repeat (inventory, Jack's car rental) the sweep
+  sums each distinct row once, so it runs below the floor of the full product.
 - Errors: "max abs(v - v*)" is the returned values' error over non-terminal states;
   "max v* - v_pi" the returned policy's, by an exact evaluation. The reference v_*
   is policy iteration with exact evaluation, cross-checked by ordered Gauss-Seidel
@@ -567,27 +573,39 @@ NOTES = """Notes.
   every action available in every state, so the inventory and Jack's car rental
   families (whose A(s) depend on the state) are not run there.
 - The machine is shared: other developers' jobs run at the same time (the load
-  average above), so timings carry noise of tens of percent.
+  average above), so timings carry noise of tens of percent, and the 2-thread rows
+  measure mostly the wait for a second core that other jobs hold (a threaded sweep
+  waits for its slowest thread); they are no measure of scaling on a quiet machine.
 - What wins where (the rules of `method="auto"`, see `policylab.planning.auto`):
   on episodic tasks with gamma < 1, in-place sweeps ordered from the terminal states
   backwards, started from a lower bound of v_* and solving each self-loop exactly,
   finish in 2 sweeps where synchronous sweeps need one per step of the longest path
   (about 480 on the grids, 11,000 on the chain); at gamma = 1, policy iteration from
-  a proper policy (one evaluation by sparse LU on these families); on continuing
-  tasks, policy iteration up to 5,000 states and MacQueen-bounded value iteration
-  above.
-- Not reached (yet): the solvers are single-threaded (no parallel sweeps), so no
-  1-core against 2-core comparison is given; a synchronous sweep costs 0.75-2.2x the
-  bare product (within 1.3x on the random, inventory and car-rental models, about 2x
-  on the grids and the chain, whose rows hold 1-2 outcomes so that per-state work
-  dominates); on the two small continuing families (inventory, Jack's car rental)
-  auto's policy iteration is not 3x faster than quantecon's best (policylab's own
-  modified policy iteration beats quantecon's by 1.6x on Jack's car rental);
-  inventory and Jack's car rental run at their textbook sizes, not at 10^5-10^6
-  states; the `--large` cases (10^6 states) were not run on this loaded machine.
-- Memory: the solve adds at most about the model's own size, except policy
-  iteration's sparse LU on the 40,000-state grids, up to 3.3x the model (26 MiB
-  against 7.8 MiB at gamma = 1, where it is auto's choice): over the 3x target."""
+  a proper policy, whose evaluation is an exact back-substitution when the policy's
+  graph has no cycle besides self-loops (as on these grids: no matrix, no fill-in);
+  on continuing tasks whose (state, action) rows repeat (the inventory's next stock
+  depends on stock + order, Jack's cars on the counts after the move: 152 and 442
+  distinct rows, one of them the empty row of unavailable actions, for the 22,801
+  and 4,851 (state, action) slots), modified policy iteration with adaptive m on
+  the distinct rows; other continuing tasks, policy iteration up to 5,000 states
+  (a dense LU where the dense matrix is no larger than the model) and
+  MacQueen-bounded value iteration above.
+- Memory: the largest extra resident memory of any policylab solve is 9 MiB on the
+  7.8 MiB grids (1.2x the model; policy iteration at gamma = 1 was 26 MiB with a
+  sparse LU before the back-substitution), 3 MiB on Jack's car rental (35.5 MiB).
+- Not reached (yet): on a machine this loaded (load average about 20 on 2 cores)
+  the 2-thread rows are slower than the 1-thread ones on most families, so no core
+  scaling is shown here; rerun on a quiet machine. A synchronous sweep on the
+  grids and the chain (rows of 1-2 outcomes) costs about 2-3x the bare product
+  here; a sweep that fuses the max over actions into the product was tried and is
+  slower (about 5x the floor on the grid: its branch stalls the loads), so the
+  two-pass sweep stays. On Jack's car rental the solvers are within noise of
+  quantecon's modified policy iteration in this run (auto 0.4x, policylab's best
+  1.0x), not 3x ahead; inventory is 4.6x ahead. Inventory and Jack's car rental run
+  at their textbook sizes: their tables grow as S^3 / 3 outcomes (inventory, every
+  order size) and S^2 per (state, action) (Jack's dense rows), so 10^5 states would
+  need 10^14 and 10^11 outcomes, beyond any memory; the `--large` cases (10^6
+  states) were not run on this loaded machine."""
 
 
 if __name__ == "__main__":

@@ -36,6 +36,22 @@ _FAST = {"reassoc", "contract", "arcp", "nsz"}
 
 
 @njit(cache=True, nogil=True)
+def _split_row(
+    indptr: Any, nxt: Any, probs: Any, row: Any, s: Any, v: Any
+) -> Any:  # pragma: no cover
+    # (sum_{s' != s} p(s' | row) v(s'), p(s | row)): a row's backup without its self-loop.
+    acc = 0.0
+    stay = 0.0
+    for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+        j = nxt[k]
+        if j == s:
+            stay += probs[k]
+        else:
+            acc += probs[k] * v[np.uint64(j)]
+    return acc, stay
+
+
+@njit(cache=True, nogil=True)
 def _gs_optimality(
     indptr: Any,
     nxt: Any,
@@ -60,14 +76,7 @@ def _gs_optimality(
             continue
         for a in range(A):
             row = s * A + a
-            acc = 0.0
-            stay = 0.0
-            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
-                j = nxt[k]
-                if j == s:
-                    stay += probs[k]
-                else:
-                    acc += probs[k] * v[np.uint64(j)]
+            acc, stay = _split_row(indptr, nxt, probs, row, s, v)
             den = 1.0 - gamma * stay
             if den > 1e-12:
                 q = (R[row] + gamma * acc) / den
@@ -363,32 +372,47 @@ def _reward(mdp: Any) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
+def _reversed_graph(
+    indptr: Any, nxt: Any, probs: Any, allowed: Any, n_states: int, self_loops: bool
+) -> Any:  # pragma: no cover - compiled
+    # The edges s -> s' with p(s' | s, a) > 0 over the allowed rows (flat (S * A,) mask),
+    # reversed into CSR form by a counting sort on s': the sources of the edges into
+    # s' are src[start[s']:start[s' + 1]]. Also each state's number of out-edges.
+    # Self-loops are left out unless ``self_loops``.
+    A = allowed.shape[0] // n_states
+    start = np.zeros(n_states + 1, dtype=np.int64)
+    degree = np.zeros(n_states, dtype=np.int64)
+    for row in range(allowed.shape[0]):
+        if allowed[row]:
+            s = row // A
+            for k in range(np.int64(indptr[row]), np.int64(indptr[row + 1])):
+                j = np.int64(nxt[k])
+                if probs[k] > 0.0 and (self_loops or j != s):
+                    start[j + 1] += 1
+                    degree[s] += 1
+    for s in range(n_states):
+        start[s + 1] += start[s]
+    src = np.empty(start[n_states], dtype=np.int64)
+    fill = start[:n_states].copy()
+    for row in range(allowed.shape[0]):
+        if allowed[row]:
+            s = row // A
+            for k in range(np.int64(indptr[row]), np.int64(indptr[row + 1])):
+                j = np.int64(nxt[k])
+                if probs[k] > 0.0 and (self_loops or j != s):
+                    src[fill[j]] = s
+                    fill[j] += 1
+    return start, src, degree
+
+
+@njit(cache=True, nogil=True)
 def _termination_distances(
     indptr: Any, nxt: Any, probs: Any, allowed: Any, terminal: Any
 ) -> Any:  # pragma: no cover - compiled
     # Breadth-first search backwards from the terminal states over the edges s -> s'
     # with p(s' | s, a) > 0 for an allowed (s, a) (``allowed`` is the flat (S * A,) mask).
-    # The reversed graph is built in CSR form first (counting sort by s').
     S = terminal.shape[0]
-    A = allowed.shape[0] // S
-    start = np.zeros(S + 1, dtype=np.int64)
-    for row in range(S * A):
-        if allowed[row]:
-            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
-                if probs[k] > 0.0:
-                    start[np.uint64(nxt[k]) + 1] += 1
-    for s in range(S):
-        start[s + 1] += start[s]
-    src = np.empty(start[S], dtype=nxt.dtype)
-    fill = start[:S].copy()
-    for row in range(S * A):
-        if allowed[row]:
-            s_from = row // A
-            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
-                if probs[k] > 0.0:
-                    j = np.uint64(nxt[k])
-                    src[fill[j]] = s_from
-                    fill[j] += 1
+    start, src, _ = _reversed_graph(indptr, nxt, probs, allowed, S, True)
     dist = np.full(S, -1, dtype=np.int64)
     queue = np.empty(S, dtype=np.int64)
     tail = 0
@@ -619,48 +643,19 @@ def dense_policy_system(mdp: Any, actions: np.ndarray, gamma: float) -> np.ndarr
 
 @njit(cache=True, nogil=True)
 def _triangular_policy_solve(
-    indptr: Any,
-    nxt: Any,
-    probs: Any,
-    n_actions: int,
-    act: Any,
-    terminal: Any,
-    gamma: float,
-    b: Any,
-    x: Any,
+    indptr: Any, nxt: Any, probs: Any, rows: Any, terminal: Any, gamma: float, b: Any, x: Any
 ) -> Any:  # pragma: no cover - compiled
     # Back-substitution of (I - gamma P_pi) x = b when the policy's graph, self-loops
-    # aside, has no cycle: states are solved once all their successors are (Kahn's
-    # algorithm on the reversed graph), each self-loop exactly. False on a cycle, or on
-    # a live state that only loops on itself at gamma = 1.
+    # aside, has no cycle: a state is solved once all its successors are (Kahn's
+    # algorithm on the reversed graph), its self-loop exactly. ``rows`` is the flat
+    # (S * A,) mask of the policy's rows; x starts at 0. False on a cycle, or on a live
+    # state that only loops on itself at gamma = 1.
     S = terminal.shape[0]
-    pending = np.zeros(S, dtype=np.int64)
-    start = np.zeros(S + 1, dtype=np.int64)
-    for s in range(S):
-        if terminal[s]:
-            continue
-        row = s * n_actions + act[s]
-        for k in range(np.int64(indptr[row]), np.int64(indptr[row + 1])):
-            j = np.int64(nxt[k])
-            if j != s:
-                pending[s] += 1
-                start[j + 1] += 1
-    for s in range(S):
-        start[s + 1] += start[s]
-    src = np.empty(start[S], dtype=np.int64)
-    fill = start[:S].copy()
+    A = rows.shape[0] // S
+    start, src, pending = _reversed_graph(indptr, nxt, probs, rows, S, False)
     queue = np.empty(S, dtype=np.int64)
     tail = 0
     for s in range(S):
-        if terminal[s]:
-            x[s] = 0.0
-        else:
-            row = s * n_actions + act[s]
-            for k in range(np.int64(indptr[row]), np.int64(indptr[row + 1])):
-                j = np.int64(nxt[k])
-                if j != s:
-                    src[fill[j]] = s
-                    fill[j] += 1
         if pending[s] == 0:
             queue[tail] = s
             tail += 1
@@ -669,19 +664,13 @@ def _triangular_policy_solve(
         u = queue[head]
         head += 1
         if not terminal[u]:
-            row = u * n_actions + act[u]
-            acc = 0.0
-            stay = 0.0
-            for k in range(np.int64(indptr[row]), np.int64(indptr[row + 1])):
-                j = np.int64(nxt[k])
-                if j == u:
-                    stay += probs[k]
-                else:
-                    acc += probs[k] * x[j]
-            den = 1.0 - gamma * stay
-            if not den > 1e-12:
-                return False
-            x[u] = (b[u] + gamma * acc) / den
+            for a in range(A):
+                if rows[u * A + a]:
+                    acc, stay = _split_row(indptr, nxt, probs, u * A + a, u, x)
+                    den = 1.0 - gamma * stay
+                    if not den > 1e-12:
+                        return False
+                    x[u] = (b[u] + gamma * acc) / den
         for e in range(start[u], start[u + 1]):
             w = src[e]
             pending[w] -= 1
@@ -703,13 +692,15 @@ def triangular_policy_solve(
     p(s|s)) solves it exactly in one pass, with no matrix built and no fill-in.
     Returns None when the graph has a cycle (or a state that only loops on itself).
     """
-    x = np.empty(mdp.n_states)
+    x = np.zeros(mdp.n_states)
+    live = np.flatnonzero(~mdp.terminal)
+    rows = np.zeros(mdp.n_states * mdp.n_actions, dtype=np.bool_)
+    rows[live * mdp.n_actions + np.asarray(actions, dtype=np.int64)[live]] = True
     ok = _triangular_policy_solve(
         mdp.indptr,
         mdp.next_states,
         mdp.probs,
-        mdp.n_actions,
-        np.ascontiguousarray(actions, dtype=np.int64),
+        rows,
         mdp.terminal,
         gamma,
         np.ascontiguousarray(b, dtype=np.float64),

@@ -88,9 +88,10 @@ def choose_method(mdp: FiniteMDP, gamma: float | None = None) -> tuple[str, str]
     if shared is not None:
         n_rows = shared.indptr.shape[0] - 1
         return "mpi", (
-            f"continuing task whose {mdp.n_states * mdp.n_actions:,} (state, action) pairs "
-            f"share {n_rows:,} distinct next-state distributions: sweeps are cheap, so "
-            "modified policy iteration with adaptive m beats linear solves"
+            f"continuing task whose {mdp.n_states * mdp.n_actions:,} (state, action) slots "
+            f"share {n_rows:,} distinct next-state distributions: each sweep sums those "
+            "once, so cheap sweeps (modified policy iteration, adaptive m) replace linear "
+            "solves"
         )
     if n_live <= DIRECT_MAX_STATES:
         return "pi", (

@@ -34,7 +34,7 @@ METHOD_NAMES = {
     "vi": "value iteration",
     "vi-gs": "value iteration (Gauss-Seidel, terminal states first)",
     "pi": "policy iteration",
-    "mpi": "modified policy iteration",
+    "mpi": "modified policy iteration (adaptive m)",
     "lp": "linear programming (HiGHS)",
 }
 
@@ -76,7 +76,7 @@ def solve_command(
             help="auto (default): chosen from the problem's size, gamma and structure, "
             "reported with the reason; vi: value iteration (MacQueen's stopping bound); "
             "vi-gs: in-place sweeps from the terminal states backwards; pi: policy "
-            "iteration (exact sparse evaluation); mpi: modified policy iteration; lp: "
+            "iteration (exact evaluation); mpi: modified policy iteration (adaptive m); lp: "
             "linear programming with HiGHS.",
         ),
     ] = "auto",

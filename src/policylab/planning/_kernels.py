@@ -8,24 +8,47 @@ read as unsigned integers so that no negative-index wraparound check is compiled
 
 from __future__ import annotations
 
-from typing import Any
+import weakref
+from typing import Any, NamedTuple
 
+import numba
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = [
+    "PARALLEL_MIN_OUTCOMES",
+    "SharedRows",
+    "dense_policy_system",
     "gauss_seidel_expectation_sweep",
     "gauss_seidel_optimality_sweep",
     "optimality_sweep",
     "policy_matvec",
     "progressing_actions",
     "q_values",
+    "shared_rows",
     "termination_distances",
+    "triangular_policy_solve",
 ]
 
 
 #: Reassociation for the sums, but no "no-inf/no-nan" assumptions (-inf marks A(s)).
 _FAST = {"reassoc", "contract", "arcp", "nsz"}
+
+
+@njit(cache=True, nogil=True)
+def _split_row(
+    indptr: Any, nxt: Any, probs: Any, row: Any, s: Any, v: Any
+) -> Any:  # pragma: no cover
+    # (sum_{s' != s} p(s' | row) v(s'), p(s | row)): a row's backup without its self-loop.
+    acc = 0.0
+    stay = 0.0
+    for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+        j = nxt[k]
+        if j == s:
+            stay += probs[k]
+        else:
+            acc += probs[k] * v[np.uint64(j)]
+    return acc, stay
 
 
 @njit(cache=True, nogil=True)
@@ -53,14 +76,7 @@ def _gs_optimality(
             continue
         for a in range(A):
             row = s * A + a
-            acc = 0.0
-            stay = 0.0
-            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
-                j = nxt[k]
-                if j == s:
-                    stay += probs[k]
-                else:
-                    acc += probs[k] * v[np.uint64(j)]
+            acc, stay = _split_row(indptr, nxt, probs, row, s, v)
             den = 1.0 - gamma * stay
             if den > 1e-12:
                 q = (R[row] + gamma * acc) / den
@@ -151,19 +167,84 @@ def gauss_seidel_expectation_sweep(
     )
 
 
+#: Synchronous sweeps run on all of numba's threads (``numba.set_num_threads``) when the
+#: model has at least this many outcomes; below it the thread start-up costs more than
+#: it saves. Every state's (or row's) value is computed by one thread, in the same order
+#: of terms as the sequential kernel, so the results are identical bit for bit.
+PARALLEL_MIN_OUTCOMES = 2_000_000
+
+
+@njit(cache=True, nogil=True)
+def _row_dot(indptr: Any, nxt: Any, probs: Any, row: Any, v: Any) -> float:  # pragma: no cover
+    # sum_k probs[k] v[nxt[k]] over one row of the outcome table, in storage order.
+    acc = 0.0
+    for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+        acc += probs[k] * v[np.uint64(nxt[k])]
+    return acc
+
+
+# Each kernel below comes twice, the same loop body over ``range`` (sequential) and over
+# ``prange`` (split over threads); only the loop differs.
+#
+# q-values: one flat pass over the rows s * A + a, exactly like a CSR matrix-vector
+# product: no branch on A(s) (a select instead), so the loads of successive rows
+# overlap. ``R``, ``mask`` and ``q`` are the flat (S * A,) views. Without fastmath: the
+# reassociated (vectorised) 10-term sums are slower than the plain ones here.
+
+
 @njit(cache=True, nogil=True)
 def _q_values(
     indptr: Any, nxt: Any, probs: Any, R: Any, mask: Any, gamma: float, v: Any, q: Any
 ) -> None:  # pragma: no cover - compiled
-    # One flat pass over the rows s * A + a, exactly like a CSR matrix-vector product:
-    # no branch on A(s) (a select instead), so the loads of successive rows overlap.
-    # ``R``, ``mask`` and ``q`` are the flat (S * A,) views. Without fastmath: the
-    # reassociated (vectorised) 10-term sums are slower than the plain ones here.
     for row in range(q.shape[0]):
-        acc = 0.0
-        for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
-            acc += probs[k] * v[np.uint64(nxt[k])]
+        acc = _row_dot(indptr, nxt, probs, row, v)
         q[row] = R[row] + gamma * acc if mask[row] else -np.inf
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _q_values_par(
+    indptr: Any, nxt: Any, probs: Any, R: Any, mask: Any, gamma: float, v: Any, q: Any
+) -> None:  # pragma: no cover - compiled
+    for row in prange(q.shape[0]):
+        acc = _row_dot(indptr, nxt, probs, row, v)
+        q[row] = R[row] + gamma * acc if mask[row] else -np.inf
+
+
+# Shared rows: w[u] = sum_s' p(s' | u) v(s') once per distinct row u, then
+# q[row] = R[row] + gamma w[row_of[row]].
+
+
+@njit(cache=True, nogil=True)
+def _row_dots(indptr: Any, nxt: Any, probs: Any, v: Any, w: Any) -> None:  # pragma: no cover
+    for u in range(w.shape[0]):
+        w[u] = _row_dot(indptr, nxt, probs, u, v)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _row_dots_par(indptr: Any, nxt: Any, probs: Any, v: Any, w: Any) -> None:  # pragma: no cover
+    for u in prange(w.shape[0]):
+        w[u] = _row_dot(indptr, nxt, probs, u, v)
+
+
+@njit(cache=True, nogil=True)
+def _q_from_rows(
+    row_of: Any, w: Any, R: Any, mask: Any, gamma: float, q: Any
+) -> None:  # pragma: no cover - compiled
+    for row in range(q.shape[0]):
+        q[row] = R[row] + gamma * w[row_of[row]] if mask[row] else -np.inf
+
+
+@njit(cache=True, nogil=True)
+def _max_of_row(q: Any, n_actions: int, s: Any) -> Any:  # pragma: no cover - compiled
+    # max_a and the first argmax_a of row s of the flat q.
+    best = -np.inf
+    best_a = -1
+    i = s * n_actions
+    for a in range(n_actions):
+        if q[i + a] > best:
+            best = q[i + a]
+            best_a = a
+    return best, best_a
 
 
 @njit(cache=True, nogil=True)
@@ -171,36 +252,41 @@ def _row_max(
     q: Any, n_actions: int, terminal: Any, out: Any, act: Any
 ) -> None:  # pragma: no cover - compiled
     # max_a and argmax_a (the first one) of each row of the flat q; 0 and -1 on terminals.
-    i = 0
     for s in range(terminal.shape[0]):
-        best = -np.inf
-        best_a = -1
-        for a in range(n_actions):
-            if q[i] > best:
-                best = q[i]
-                best_a = a
-            i += 1
-        if terminal[s]:
-            best = 0.0
-            best_a = -1
-        out[s] = best
-        act[s] = best_a
+        best, best_a = _max_of_row(q, n_actions, s)
+        out[s] = 0.0 if terminal[s] else best
+        act[s] = -1 if terminal[s] else best_a
 
 
-@njit(cache=True, nogil=True, fastmath=_FAST)
+@njit(cache=True, nogil=True, parallel=True)
+def _row_max_par(
+    q: Any, n_actions: int, terminal: Any, out: Any, act: Any
+) -> None:  # pragma: no cover - compiled
+    for s in prange(terminal.shape[0]):
+        best, best_a = _max_of_row(q, n_actions, s)
+        out[s] = 0.0 if terminal[s] else best
+        act[s] = -1 if terminal[s] else best_a
+
+
+@njit(cache=True, nogil=True)
 def _policy_matvec(
     indptr: Any, nxt: Any, probs: Any, n_actions: int, act: Any, terminal: Any, x: Any, out: Any
 ) -> None:  # pragma: no cover - compiled
-    S = terminal.shape[0]
-    for s in range(S):
-        if terminal[s]:
-            out[s] = 0.0
-            continue
-        row = s * n_actions + act[s]
-        acc = 0.0
-        for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
-            acc += probs[k] * x[np.uint64(nxt[k])]
-        out[s] = acc
+    for s in range(terminal.shape[0]):
+        out[s] = 0.0 if terminal[s] else _row_dot(indptr, nxt, probs, s * n_actions + act[s], x)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _policy_matvec_par(
+    indptr: Any, nxt: Any, probs: Any, n_actions: int, act: Any, terminal: Any, x: Any, out: Any
+) -> None:  # pragma: no cover - compiled
+    for s in prange(terminal.shape[0]):
+        out[s] = 0.0 if terminal[s] else _row_dot(indptr, nxt, probs, s * n_actions + act[s], x)
+
+
+def _parallel(n_reads: int) -> bool:
+    """Whether a pass reading this many outcomes (or q entries) goes to the threaded kernels."""
+    return n_reads >= PARALLEL_MIN_OUTCOMES and numba.get_num_threads() > 1
 
 
 def q_values(mdp: Any, gamma: float, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -212,20 +298,26 @@ def q_values(mdp: Any, gamma: float, v: np.ndarray, out: np.ndarray | None = Non
         v: State values (S,).
         out: Optional (S, A) C-contiguous float64 array to write q into (reused across
             sweeps by the solvers); a new one by default.
+
+    Where many (s, a) share one distribution p(. | s, a) (see :func:`shared_rows`),
+    each distinct sum over s' is computed once; on large models the rows are split
+    over numba's threads. Either way each q(s, a) is the same sum, in the same order,
+    so the result is identical bit for bit.
     """
     q = np.empty((mdp.n_states, mdp.n_actions)) if out is None else out
     if not q.flags.c_contiguous or q.shape != (mdp.n_states, mdp.n_actions):
         raise ValueError("out must be a C-contiguous (S, A) float64 array")
-    _q_values(
-        mdp.indptr,
-        mdp.next_states,
-        mdp.probs,
-        _reward(mdp).reshape(-1),
-        mdp.action_mask.reshape(-1),
-        gamma,
-        np.ascontiguousarray(v, dtype=np.float64),
-        q.reshape(-1),
-    )
+    vv = np.ascontiguousarray(v, dtype=np.float64)
+    R, mask, flat = _reward(mdp).reshape(-1), mdp.action_mask.reshape(-1), q.reshape(-1)
+    shared = shared_rows(mdp)
+    if shared is not None:
+        w = np.empty(shared.indptr.shape[0] - 1)
+        dots = _row_dots_par if _parallel(shared.probs.shape[0]) else _row_dots
+        dots(shared.indptr, shared.next_states, shared.probs, vv, w)
+        _q_from_rows(shared.row_of, w, R, mask, gamma, flat)
+    else:
+        kernel = _q_values_par if _parallel(mdp.n_outcomes) else _q_values
+        kernel(mdp.indptr, mdp.next_states, mdp.probs, R, mask, gamma, vv, flat)
     return q
 
 
@@ -251,14 +343,18 @@ def optimality_sweep(
     q = q_values(mdp, gamma, v, work)
     out = np.empty(mdp.n_states)
     act = np.empty(mdp.n_states, dtype=np.int64)
-    _row_max(q.reshape(-1), mdp.n_actions, mdp.terminal, out, act)
+    row_max = _row_max_par if _parallel(q.size) else _row_max
+    row_max(q.reshape(-1), mdp.n_actions, mdp.terminal, out, act)
     return out, act
 
 
 def policy_matvec(mdp: Any, actions: np.ndarray, x: np.ndarray) -> np.ndarray:
     """(P_pi x)(s) = sum_s' p(s' | s, pi(s)) x(s') for a deterministic policy (0 on terminals)."""
     out = np.empty(mdp.n_states)
-    _policy_matvec(
+    kernel = (
+        _policy_matvec_par if _parallel(mdp.n_outcomes // max(mdp.n_actions, 1)) else _policy_matvec
+    )
+    kernel(
         mdp.indptr,
         mdp.next_states,
         mdp.probs,
@@ -276,32 +372,47 @@ def _reward(mdp: Any) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
+def _reversed_graph(
+    indptr: Any, nxt: Any, probs: Any, allowed: Any, n_states: int, self_loops: bool
+) -> Any:  # pragma: no cover - compiled
+    # The edges s -> s' with p(s' | s, a) > 0 over the allowed rows (flat (S * A,) mask),
+    # reversed into CSR form by a counting sort on s': the sources of the edges into
+    # s' are src[start[s']:start[s' + 1]]. Also each state's number of out-edges.
+    # Self-loops are left out unless ``self_loops``.
+    A = allowed.shape[0] // n_states
+    start = np.zeros(n_states + 1, dtype=np.int64)
+    degree = np.zeros(n_states, dtype=np.int64)
+    for row in range(allowed.shape[0]):
+        if allowed[row]:
+            s = row // A
+            for k in range(np.int64(indptr[row]), np.int64(indptr[row + 1])):
+                j = np.int64(nxt[k])
+                if probs[k] > 0.0 and (self_loops or j != s):
+                    start[j + 1] += 1
+                    degree[s] += 1
+    for s in range(n_states):
+        start[s + 1] += start[s]
+    src = np.empty(start[n_states], dtype=np.int64)
+    fill = start[:n_states].copy()
+    for row in range(allowed.shape[0]):
+        if allowed[row]:
+            s = row // A
+            for k in range(np.int64(indptr[row]), np.int64(indptr[row + 1])):
+                j = np.int64(nxt[k])
+                if probs[k] > 0.0 and (self_loops or j != s):
+                    src[fill[j]] = s
+                    fill[j] += 1
+    return start, src, degree
+
+
+@njit(cache=True, nogil=True)
 def _termination_distances(
     indptr: Any, nxt: Any, probs: Any, allowed: Any, terminal: Any
 ) -> Any:  # pragma: no cover - compiled
     # Breadth-first search backwards from the terminal states over the edges s -> s'
     # with p(s' | s, a) > 0 for an allowed (s, a) (``allowed`` is the flat (S * A,) mask).
-    # The reversed graph is built in CSR form first (counting sort by s').
     S = terminal.shape[0]
-    A = allowed.shape[0] // S
-    start = np.zeros(S + 1, dtype=np.int64)
-    for row in range(S * A):
-        if allowed[row]:
-            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
-                if probs[k] > 0.0:
-                    start[np.uint64(nxt[k]) + 1] += 1
-    for s in range(S):
-        start[s + 1] += start[s]
-    src = np.empty(start[S], dtype=nxt.dtype)
-    fill = start[:S].copy()
-    for row in range(S * A):
-        if allowed[row]:
-            s_from = row // A
-            for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
-                if probs[k] > 0.0:
-                    j = np.uint64(nxt[k])
-                    src[fill[j]] = s_from
-                    fill[j] += 1
+    start, src, _ = _reversed_graph(indptr, nxt, probs, allowed, S, True)
     dist = np.full(S, -1, dtype=np.int64)
     queue = np.empty(S, dtype=np.int64)
     tail = 0
@@ -371,3 +482,228 @@ def progressing_actions(mdp: Any, allowed: np.ndarray, dist: np.ndarray) -> np.n
     out = np.empty(flat.shape[0], dtype=np.bool_)
     _progressing_rows(mdp.indptr, mdp.next_states, mdp.probs, flat, dist, out)
     return out.reshape(mdp.n_states, mdp.n_actions)
+
+
+# ---------------------------------------------------------------- shared outcome rows
+#
+# Many models repeat the same distribution p(. | s, a) in many rows: in an inventory
+# the next stock depends on s + a only, in Jack's car rental on the cars at each
+# location after the move (Sutton & Barto section 6.8 call these afterstates). A sum
+# sum_s' p(s' | s, a) v(s') is then the same for every (s, a) sharing the row, and a
+# sweep need compute it once per distinct row.
+
+_FNV = np.uint64(0x100000001B3)
+
+
+@njit(cache=True, nogil=True)
+def _distinct_rows(
+    indptr: Any, nxt: Any, pbits: Any, max_fraction: float
+) -> Any:  # pragma: no cover - compiled
+    # Open-addressing hash table over the rows (keys: next states and the probabilities'
+    # bit patterns, compared exactly, entry by entry). Returns (number of distinct
+    # rows, row -> distinct id, representative row of each id), or n = -1 as soon as
+    # the distinct rows hold more than ``max_fraction`` of all outcomes, or (tables of
+    # 10^6 outcomes or more) of those of the first quarter of the rows once it is read:
+    # too little sharing to pay off.
+    n_rows = indptr.shape[0] - 1
+    size = 1
+    while size < 2 * n_rows:
+        size *= 2
+    table = np.full(size, -1, dtype=np.int64)
+    row_of = np.empty(n_rows, dtype=np.int64)
+    reps = np.empty(n_rows, dtype=np.int64)
+    n = 0
+    kept = np.int64(0)
+    max_outcomes = max_fraction * np.float64(indptr[n_rows])
+    for row in range(n_rows):
+        lo, hi = np.int64(indptr[row]), np.int64(indptr[row + 1])
+        # the hash reads a few outcomes only (length, two first, two last); the exact
+        # comparison below reads the rest
+        h = np.uint64(0xCBF29CE484222325) ^ np.uint64(hi - lo)
+        for k in (lo, lo + 1, hi - 2, hi - 1):
+            if lo <= k < hi:
+                h = (h ^ np.uint64(nxt[k])) * _FNV
+                h = (h ^ pbits[k]) * _FNV
+        slot = np.int64(h & np.uint64(size - 1))
+        while True:
+            u = table[slot]
+            if u < 0:
+                table[slot] = n
+                reps[n] = row
+                row_of[row] = n
+                n += 1
+                kept += hi - lo
+                break
+            r = reps[u]
+            rlo = np.int64(indptr[r])
+            same = np.int64(indptr[r + 1]) - rlo == hi - lo
+            if same:
+                for e in range(hi - lo):
+                    if nxt[rlo + e] != nxt[lo + e] or pbits[rlo + e] != pbits[lo + e]:
+                        same = False
+                        break
+            if same:
+                row_of[row] = u
+                break
+            slot = (slot + 1) & (size - 1)
+        if kept > max_outcomes or (
+            row == n_rows // 4
+            and indptr[n_rows] >= 1_000_000
+            and kept > max_fraction * np.float64(indptr[row + 1])
+        ):
+            return -1, row_of, reps
+    return n, row_of, reps
+
+
+class SharedRows(NamedTuple):
+    """The distinct rows of the outcome table's p(s' | s, a), in CSR form.
+
+    ``row_of[s * A + a]`` is the distinct row holding p(. | s, a) (rows of terminal
+    states and of unavailable actions share the empty row).
+    """
+
+    indptr: np.ndarray
+    next_states: np.ndarray
+    probs: np.ndarray
+    row_of: np.ndarray
+
+
+#: Look for shared rows only when the non-empty rows hold at least this many outcomes
+#: on average (on shorter rows the per-row work dominates and the saving is small).
+SHARED_MIN_ROW = 4
+#: Use them only when the distinct rows hold at most this fraction of the outcomes.
+SHARED_MAX_FRACTION = 0.5
+
+_SHARED: weakref.WeakKeyDictionary[Any, SharedRows | None] = weakref.WeakKeyDictionary()
+
+
+def shared_rows(mdp: Any) -> SharedRows | None:
+    """The distinct rows of p(s' | s, a) when few enough are distinct, else None.
+
+    Found once per model (one pass over the outcome table with a hash table, rows
+    compared exactly) and kept with it; None when rows are short (fewer than
+    :data:`SHARED_MIN_ROW` outcomes on average over the non-empty rows) or when the
+    distinct rows hold more than :data:`SHARED_MAX_FRACTION` of the outcomes.
+    """
+    if mdp in _SHARED:
+        return _SHARED[mdp]
+    found: SharedRows | None = None
+    n_rows = int(np.count_nonzero(mdp.indptr[1:] != mdp.indptr[:-1]))
+    if mdp.n_outcomes >= SHARED_MIN_ROW * n_rows:
+        n, row_of, reps = _distinct_rows(
+            mdp.indptr,
+            mdp.next_states,
+            mdp.probs.view(np.uint64),
+            SHARED_MAX_FRACTION,
+        )
+        if n >= 0:
+            reps = reps[:n]
+            lengths = (mdp.indptr[reps + 1] - mdp.indptr[reps]).astype(np.int64)
+            indptr = np.zeros(n + 1, dtype=np.int64)
+            np.cumsum(lengths, out=indptr[1:])
+            take = np.repeat(mdp.indptr[reps].astype(np.int64) - indptr[:-1], lengths)
+            take += np.arange(int(indptr[-1]), dtype=np.int64)
+            found = SharedRows(indptr, mdp.next_states[take], mdp.probs[take], row_of)
+    _SHARED[mdp] = found
+    return found
+
+
+@njit(cache=True, nogil=True)
+def _dense_policy_system(
+    indptr: Any, nxt: Any, probs: Any, n_actions: int, act: Any, terminal: Any, gamma: float, M: Any
+) -> None:  # pragma: no cover - compiled
+    # M = I - gamma P_pi, dense, for a deterministic policy (rows of terminal states: v = 0).
+    for s in range(terminal.shape[0]):
+        M[s, s] += 1.0
+        if terminal[s]:
+            continue
+        row = s * n_actions + act[s]
+        for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+            M[s, np.uint64(nxt[k])] -= gamma * probs[k]
+
+
+def dense_policy_system(mdp: Any, actions: np.ndarray, gamma: float) -> np.ndarray:
+    """The dense (S, S) matrix I - gamma P_pi of a deterministic policy, from the outcome table.
+
+    Rows of terminal states are those of the identity (v(s) = 0 there).
+    """
+    M = np.zeros((mdp.n_states, mdp.n_states))
+    _dense_policy_system(
+        mdp.indptr,
+        mdp.next_states,
+        mdp.probs,
+        mdp.n_actions,
+        np.ascontiguousarray(actions, dtype=np.int64),
+        mdp.terminal,
+        gamma,
+        M,
+    )
+    return M
+
+
+@njit(cache=True, nogil=True)
+def _triangular_policy_solve(
+    indptr: Any, nxt: Any, probs: Any, rows: Any, terminal: Any, gamma: float, b: Any, x: Any
+) -> Any:  # pragma: no cover - compiled
+    # Back-substitution of (I - gamma P_pi) x = b when the policy's graph, self-loops
+    # aside, has no cycle: a state is solved once all its successors are (Kahn's
+    # algorithm on the reversed graph), its self-loop exactly. ``rows`` is the flat
+    # (S * A,) mask of the policy's rows; x starts at 0. False on a cycle, or on a live
+    # state that only loops on itself at gamma = 1.
+    S = terminal.shape[0]
+    A = rows.shape[0] // S
+    start, src, pending = _reversed_graph(indptr, nxt, probs, rows, S, False)
+    queue = np.empty(S, dtype=np.int64)
+    tail = 0
+    for s in range(S):
+        if pending[s] == 0:
+            queue[tail] = s
+            tail += 1
+    head = 0
+    while head < tail:
+        u = queue[head]
+        head += 1
+        if not terminal[u]:
+            for a in range(A):
+                if rows[u * A + a]:
+                    acc, stay = _split_row(indptr, nxt, probs, u * A + a, u, x)
+                    den = 1.0 - gamma * stay
+                    if not den > 1e-12:
+                        return False
+                    x[u] = (b[u] + gamma * acc) / den
+        for e in range(start[u], start[u + 1]):
+            w = src[e]
+            pending[w] -= 1
+            if pending[w] == 0:
+                queue[tail] = w
+                tail += 1
+    return tail == S
+
+
+def triangular_policy_solve(
+    mdp: Any, actions: np.ndarray, b: np.ndarray, gamma: float
+) -> np.ndarray | None:
+    """Solve v = b + gamma P_pi v by back-substitution when the policy graph is acyclic.
+
+    For a deterministic policy whose transitions, self-loops aside, form no cycle (a
+    proper policy on a grid or a chain that always moves toward the goal), the states
+    can be ordered so that each depends only on states solved before it: the system is
+    triangular, and v(s) = [b(s) + gamma sum_{s' != s} p(s'|s) v(s')] / (1 - gamma
+    p(s|s)) solves it exactly in one pass, with no matrix built and no fill-in.
+    Returns None when the graph has a cycle (or a state that only loops on itself).
+    """
+    x = np.zeros(mdp.n_states)
+    live = np.flatnonzero(~mdp.terminal)
+    rows = np.zeros(mdp.n_states * mdp.n_actions, dtype=np.bool_)
+    rows[live * mdp.n_actions + np.asarray(actions, dtype=np.int64)[live]] = True
+    ok = _triangular_policy_solve(
+        mdp.indptr,
+        mdp.next_states,
+        mdp.probs,
+        rows,
+        mdp.terminal,
+        gamma,
+        np.ascontiguousarray(b, dtype=np.float64),
+        x,
+    )
+    return x if ok else None

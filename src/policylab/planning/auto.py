@@ -13,12 +13,22 @@ measured on families of MDPs, from the problem's size, gamma and structure:
    error bound at gamma = 1 and may need as many sweeps as the longest episode;
    policy iteration is exact and, from a policy that heads for the end, needs few
    improvements.
-3. Continuing and small (at most ``DIRECT_MAX_STATES`` states): policy iteration
-   with a sparse LU (exact, a handful of improvements).
-4. Continuing and large, gamma <= 0.99: synchronous value iteration stopped by
+3. Continuing, whose distributions p(. | s, a) repeat across many (s, a) (the
+   distinct rows hold at most half the outcomes, as in inventories and Jack's car
+   rental, whose next state depends on the stock after the order or the move):
+   modified policy iteration with adaptive m. A Bellman optimality sweep then costs
+   about what one policy-evaluation sweep does (each distinct row is summed once), so
+   cheap sweeps beat the linear solves of policy iteration.
+4. Continuing and small otherwise (at most ``DIRECT_MAX_STATES`` states): policy
+   iteration (exact evaluation: a dense LU where the dense matrix is no larger than
+   the model, else a sparse LU; a handful of improvements).
+5. Continuing and large, gamma <= 0.99: synchronous value iteration stopped by
    MacQueen's bounds, which close in a few dozen sweeps on chains that mix.
-5. Continuing and large, gamma > 0.99: modified policy iteration (partial
-   evaluations carry values further per improvement than single sweeps).
+6. Continuing and large, gamma > 0.99: modified policy iteration with adaptive m
+   (partial evaluations carry values further per improvement than single sweeps).
+
+``"mpi"`` is modified policy iteration with adaptive m (see
+:func:`~policylab.planning.modified_policy_iteration`).
 """
 
 from __future__ import annotations
@@ -28,6 +38,7 @@ from typing import TYPE_CHECKING
 
 from policylab.exceptions import InvalidArgumentError
 from policylab.planning._checks import check_gamma, check_tol
+from policylab.planning._kernels import shared_rows
 from policylab.planning.control import (
     _all_reach_terminal,
     modified_policy_iteration,
@@ -49,7 +60,7 @@ METHODS = {
     "vi": "value iteration (synchronous, MacQueen's bounds)",
     "vi-gs": "value iteration (Gauss-Seidel, terminal states first)",
     "pi": "policy iteration (exact evaluation)",
-    "mpi": "modified policy iteration",
+    "mpi": "modified policy iteration (adaptive m)",
     "lp": "linear programming (HiGHS)",
 }
 
@@ -73,6 +84,15 @@ def choose_method(mdp: FiniteMDP, gamma: float | None = None) -> tuple[str, str]
             "episodic task with gamma = 1: sweeps have no error bound there; policy "
             "iteration from a proper policy is exact in few improvements"
         )
+    shared = shared_rows(mdp)
+    if shared is not None:
+        n_rows = shared.indptr.shape[0] - 1
+        return "mpi", (
+            f"continuing task whose {mdp.n_states * mdp.n_actions:,} (state, action) slots "
+            f"share {n_rows:,} distinct next-state distributions: each sweep sums those "
+            "once, so cheap sweeps (modified policy iteration, adaptive m) replace linear "
+            "solves"
+        )
     if n_live <= DIRECT_MAX_STATES:
         return "pi", (
             f"continuing task with {n_live:,} states (<= {DIRECT_MAX_STATES:,}): policy "
@@ -84,8 +104,8 @@ def choose_method(mdp: FiniteMDP, gamma: float | None = None) -> tuple[str, str]
             "few dozen synchronous sweeps when the chain mixes"
         )
     return "mpi", (
-        f"large continuing task, gamma {g:g} > 0.99: partial policy evaluations between "
-        "improvements carry values further than single sweeps"
+        f"large continuing task, gamma {g:g} > 0.99: partial policy evaluations (adaptive m) "
+        "between improvements carry values further than single sweeps"
     )
 
 
@@ -121,7 +141,7 @@ def solve(
     elif chosen == "vi-gs":
         res = value_iteration(mdp, tol=t, gamma=g, gauss_seidel=True, order="auto")
     elif chosen == "mpi":
-        res = modified_policy_iteration(mdp, tol=t, gamma=g)
+        res = modified_policy_iteration(mdp, m="adaptive", tol=t, gamma=g)
     elif chosen == "lp":
         res = linear_programming(mdp, gamma=g)
     else:

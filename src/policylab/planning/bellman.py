@@ -119,13 +119,23 @@ def policy_transition_matrix(mdp: FiniteMDP, policy: PolicyLike) -> sp.csr_array
 
 def _policy_matrix(mdp: FiniteMDP, probs: NDArray[np.float64]) -> sp.csr_array:
     S, A = mdp.n_states, mdp.n_actions
-    tm = mdp.transition_matrix
     live = ~mdp.terminal
     nnz_per_row = (probs > 0).sum(axis=1)
     if np.all(nnz_per_row[live] == 1):
-        # Terminal rows of the transition matrix are empty, whichever action is picked.
-        rows = np.arange(S) * A + probs.argmax(axis=1)
-        return sp.csr_array(tm[rows])
+        # One row of the outcome table per state, copied straight from it (terminal
+        # states: none); csr_array sums duplicate next states.
+        rows = np.flatnonzero(live) * A + probs.argmax(axis=1)[live]
+        starts, ends = mdp.indptr[rows], mdp.indptr[rows + 1]
+        lengths = (ends - starts).astype(np.int64)
+        indptr = np.zeros(S + 1, dtype=np.int64)
+        indptr[1:][live] = lengths
+        np.cumsum(indptr, out=indptr)
+        take = np.repeat(starts.astype(np.int64) - indptr[:-1][live], lengths)
+        take += np.arange(int(indptr[-1]), dtype=np.int64)
+        m = sp.csr_array((mdp.probs[take], mdp.next_states[take], indptr), shape=(S, S))
+        m.sum_duplicates()
+        return m
+    tm = mdp.transition_matrix
     s_idx, a_idx = np.nonzero(probs)
     w = sp.csr_array((probs[s_idx, a_idx], (s_idx, s_idx * A + a_idx)), shape=(S, S * A))
     return sp.csr_array(w @ tm)

@@ -53,7 +53,15 @@ if TYPE_CHECKING:
 
     from policylab.mdp.finite import FiniteMDP
 
-__all__ = ["modified_policy_iteration", "policy_iteration", "proper_policy", "value_iteration"]
+__all__ = [
+    "ADAPTIVE_ETA",
+    "ADAPTIVE_MAX_M",
+    "ADAPTIVE_STALL",
+    "modified_policy_iteration",
+    "policy_iteration",
+    "proper_policy",
+    "value_iteration",
+]
 
 
 def _masked_reward(mdp: FiniteMDP) -> NDArray[np.float64]:
@@ -386,10 +394,20 @@ def policy_iteration(
     )
 
 
+#: ``m="adaptive"``: evaluation sweeps stop once the span of their change is below this
+#: fraction of the span of the improvement's Bellman residual.
+ADAPTIVE_ETA = 0.1
+#: ``m="adaptive"``: evaluation sweeps also stop when a sweep shrinks the span of the
+#: change by less than this factor (the evaluation has stalled).
+ADAPTIVE_STALL = 0.995
+#: ``m="adaptive"``: the most evaluation sweeps after one improvement.
+ADAPTIVE_MAX_M = 1000
+
+
 def modified_policy_iteration(
     mdp: FiniteMDP,
     *,
-    m: int = 10,
+    m: int | str = 10,
     tol: float = 1e-8,
     gamma: float | None = None,
     max_iter: int = 100_000,
@@ -405,9 +423,21 @@ def modified_policy_iteration(
     d = T v_k - v_k prove max_s |v(s) - v_*(s)| <= ``tol`` (gamma < 1); with gamma = 1
     it stops when max_s |d(s)| <= tol and gives no bound.
 
+    Adaptive m (``m="adaptive"``): after improvement k the evaluation sweeps
+    x_{j+1} = T_{pi_k} x_j go on while they are worth their cost, judged by the span
+    sp(x) = max_s x(s) - min_s x(s) of their change Delta_j = x_{j+1} - x_j (the span is
+    what MacQueen's bounds, hence the stopping rule, measure). They stop at the first j
+    where sp(Delta_j) <= eta sp(d_k) (the policy's values are then known far better
+    than the improvement step can use; eta = :data:`ADAPTIVE_ETA`), or where
+    sp(Delta_j) > rho sp(Delta_{j-1}) (the span no longer shrinks: the evaluation has
+    stalled; rho = :data:`ADAPTIVE_STALL`), or after :data:`ADAPTIVE_MAX_M` sweeps. So
+    m grows where policies mix slowly and their evaluation keeps paying, and shrinks to
+    a few sweeps where the values settle at once. Any sequence m_k keeps the stopping
+    rule's proof: the bound is computed from d = T v_k - v_k whatever v_k is.
+
     Args:
         mdp: The MDP.
-        m: Partial evaluation sweeps per improvement.
+        m: Partial evaluation sweeps per improvement, or ``"adaptive"`` (see above).
         tol: Accuracy asked of v.
         gamma: Discount rate; default ``mdp.gamma``.
         max_iter: The most improvements (NotConvergedWarning if reached).
@@ -421,7 +451,10 @@ def modified_policy_iteration(
     g = check_gamma(mdp, gamma)
     t = check_tol(tol)
     check_positive_int(max_iter, "max_iter")
-    m = check_positive_int(m, "m", minimum=0)
+    adaptive = isinstance(m, str)
+    if adaptive and m != "adaptive":
+        raise InvalidArgumentError(f"m must be an integer >= 0 or 'adaptive'; got {m!r}")
+    m_fixed = 0 if adaptive else check_positive_int(m, "m", minimum=0)  # type: ignore[arg-type]
     if g == 1.0:
         _require_episodic(mdp, "modified policy iteration")
     S = mdp.n_states
@@ -436,6 +469,7 @@ def modified_policy_iteration(
     residual = np.inf
     rows = np.arange(S)
     work = np.empty((S, mdp.n_actions))  # q, reused by every sweep
+    sweeps: list[int] = []  # evaluation sweeps after each improvement (adaptive m)
     for _ in range(max_iter):
         tv, act = optimality_sweep(mdp, g, v, work)
         d = tv - v
@@ -456,11 +490,15 @@ def modified_policy_iteration(
             v = tv
             break
         v = tv
-        if m:
+        if adaptive or m_fixed:
             r_pi = R[rows, np.maximum(act, 0)]
             r_pi[mdp.terminal] = 0.0
-            for _k in range(m):
-                v = r_pi + g * policy_matvec(mdp, act, v)
+            if adaptive:
+                v, n_eval = _adaptive_evaluation(mdp, act, r_pi, g, v, _span(d[live]), live)
+                sweeps.append(n_eval)
+            else:
+                for _k in range(m_fixed):
+                    v = r_pi + g * policy_matvec(mdp, act, v)
     if not converged:
         warnings.warn(
             f"modified policy iteration stopped after {len(history)} improvements (max_iter): "
@@ -481,4 +519,35 @@ def modified_policy_iteration(
         residual=residual,
         error_bound=bound if g < 1.0 else None,
         seconds=time.perf_counter() - t0,
+        info={"evaluation_sweeps": sweeps} if adaptive else {},
     )
+
+
+def _span(x: NDArray[np.float64]) -> float:
+    """sp(x) = max_s x(s) - min_s x(s) (0 for an empty x)."""
+    return float(x.max() - x.min()) if x.size else 0.0
+
+
+def _adaptive_evaluation(
+    mdp: FiniteMDP,
+    act: NDArray[np.int64],
+    r_pi: NDArray[np.float64],
+    gamma: float,
+    v: NDArray[np.float64],
+    residual_span: float,
+    live: NDArray[np.bool_],
+) -> tuple[NDArray[np.float64], int]:
+    """Sweeps v <- r_pi + gamma P_pi v by the adaptive rule of :func:`modified_policy_iteration`.
+
+    Returns the values and the number of sweeps made.
+    """
+    target = ADAPTIVE_ETA * residual_span
+    last = np.inf
+    for j in range(1, ADAPTIVE_MAX_M + 1):
+        new = r_pi + gamma * policy_matvec(mdp, act, v)
+        change = _span((new - v)[live])
+        v = new
+        if change <= target or change > ADAPTIVE_STALL * last:
+            return v, j
+        last = change
+    return v, ADAPTIVE_MAX_M

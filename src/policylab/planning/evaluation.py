@@ -3,8 +3,16 @@
 Exact evaluation solves the linear system (I - gamma P_pi) v = r_pi over the
 non-terminal states (terminal states have value 0):
 
+* a deterministic policy whose transitions, self-loops aside, form no cycle
+  (``solver="auto"``; proper policies that head for the goal on grids and chains):
+  back-substitution in the order that solves each state after its successors, exact
+  in one pass with no matrix and no fill-in;
 * small systems (``solver="direct"``, the default below :data:`DIRECT_MAX_STATES`
   non-terminal states): a sparse LU factorisation (SuperLU), exact to rounding;
+  with ``solver="auto"``, gamma < 1 and a deterministic policy whose dense S x S
+  matrix is no larger than the model itself (at most :data:`DENSE_MAX_STATES`
+  states, dense rows as in inventories and car rentals), a dense LU (LAPACK) of
+  I - gamma P_pi built straight from the outcome table instead;
 * large systems (``solver="auto"`` above that size, gamma < 1): synchronous sweeps
   v <- r_pi + gamma P_pi v, warm-started, stopped by MacQueen's bounds (the same rule
   as value iteration) as soon as max_s |v(s) - v_pi(s)| <= tol is proven; the
@@ -45,7 +53,12 @@ from policylab.planning._checks import (
     check_v,
     require_terminal_reachable,
 )
-from policylab.planning._kernels import gauss_seidel_expectation_sweep, policy_matvec
+from policylab.planning._kernels import (
+    dense_policy_system,
+    gauss_seidel_expectation_sweep,
+    policy_matvec,
+    triangular_policy_solve,
+)
 from policylab.planning._sweeps import run_sweeps, span_bounds
 from policylab.planning.bellman import _policy_matrix, _q
 from policylab.planning.result import PlanningResult
@@ -55,10 +68,14 @@ if TYPE_CHECKING:
 
     from policylab.mdp.finite import FiniteMDP
 
-__all__ = ["DIRECT_MAX_STATES", "evaluate_policy", "solve_policy_system"]
+__all__ = ["DENSE_MAX_STATES", "DIRECT_MAX_STATES", "evaluate_policy", "solve_policy_system"]
 
 #: Below this many non-terminal states, ``solver="auto"`` uses the sparse LU.
 DIRECT_MAX_STATES = 5000
+
+#: ``solver="auto"``: the most states for a dense LU (when the dense matrix is no
+#: larger than the model).
+DENSE_MAX_STATES = 3000
 
 #: ``solver="auto"``: up to this many non-terminal states, a system that the sweeps do
 #: not finish goes to the sparse LU directly (above it, GMRES first).
@@ -119,16 +136,39 @@ def solve_policy_system(
         w[live_idx, actions[live_idx]] = 1.0
         return _policy_matrix(mdp, w)
 
-    if gamma == 1.0:
-        require_terminal_reachable(mdp, matrix(), "the policy")
     b = np.array(r_pi, dtype=np.float64)
     b[mdp.terminal] = 0.0
     info: dict[str, Any] = {}
+    if solver == "auto" and actions is not None:
+        # An acyclic policy graph (self-loops aside) makes the system triangular:
+        # exact back-substitution in one pass, no matrix, no fill-in (and proper).
+        xt = triangular_policy_solve(mdp, actions, b, gamma)
+        if xt is not None:
+            res = float(np.abs(b - xt + gamma * policy_matvec(mdp, actions, xt)).max(initial=0.0))
+            info.update(
+                solver="direct (back-substitution)",
+                residual=res,
+                error_bound=res / (1.0 - gamma) if gamma < 1.0 else None,
+            )
+            return xt, info
+    if gamma == 1.0:
+        require_terminal_reachable(mdp, matrix(), "the policy")
     use_direct = solver == "direct" or (
         solver == "auto" and int((~mdp.terminal).sum()) <= DIRECT_MAX_STATES
     )
     x: NDArray[np.float64] | None = None
-    if not use_direct:
+    if (
+        solver == "auto"
+        and gamma < 1.0
+        and actions is not None
+        and S <= DENSE_MAX_STATES
+        and mdp.nbytes >= 8 * S * S
+    ):
+        Md = dense_policy_system(mdp, actions, gamma)
+        x = np.asarray(np.linalg.solve(Md, b), dtype=np.float64)
+        res = float(np.abs(b - Md @ x).max(initial=0.0))
+        info.update(solver="direct (dense LU)", residual=res, error_bound=res / (1.0 - gamma))
+    if not use_direct and x is None:
         if actions is not None:
             acts = np.ascontiguousarray(actions, dtype=np.int64)
 

@@ -18,6 +18,9 @@ __all__ = ["ActorCritic"]
 
 _LOG_2PI = math.log(2 * math.pi)
 
+Cache = tuple[list[torch.Tensor], list[torch.Tensor], tuple[torch.Tensor, ...]]
+"""What :meth:`ActorCritic.forward_cached` keeps for :meth:`ActorCritic.backward_cached`."""
+
 
 class ActorCritic(nn.Module):
     """pi(a | s) and V(s). Vector observations get two separate MLPs; images share one CNN.
@@ -139,7 +142,7 @@ class ActorCritic(nn.Module):
 
     def forward_cached(
         self, obs: torch.Tensor, actions: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, tuple[object, ...]]:
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, Cache]:
         """:meth:`evaluate_actions` without autograd, keeping what the backward pass needs.
 
         Returns ``(log_prob, entropy, value, cache)``; pass ``cache`` to
@@ -168,7 +171,7 @@ class ActorCritic(nn.Module):
 
     def backward_cached(
         self,
-        cache: tuple[object, ...],
+        cache: Cache,
         grad_log_prob: torch.Tensor,
         grad_entropy: float,
         grad_value: torch.Tensor,
@@ -191,7 +194,7 @@ class ActorCritic(nn.Module):
             g = grad_log_prob.unsqueeze(-1)
             if self.continuous:
                 assert self.log_std is not None
-                z, std = extra  # type: ignore[misc]
+                z, std = extra
                 g_out = g * z / std
                 g_log_std = (g * (z * z - 1.0)).sum(0) + grad_entropy * len(z)
                 if self.log_std.grad is None:
@@ -199,11 +202,11 @@ class ActorCritic(nn.Module):
                 else:
                     self.log_std.grad.copy_(g_log_std)
             else:
-                idx, pi, log_pi, ent = extra  # type: ignore[misc]
+                idx, pi, log_pi, ent = extra
                 g_out = pi * ((log_pi + ent.unsqueeze(-1)) * -grad_entropy - g)
                 g_out.scatter_add_(-1, idx, g)
-            mlp_backward(actor, self.act, a_in, g_out)  # type: ignore[arg-type]
-            mlp_backward(critic, self.act, c_in, grad_value.unsqueeze(-1))  # type: ignore[arg-type]
+            mlp_backward(actor, self.act, a_in, g_out)
+            mlp_backward(critic, self.act, c_in, grad_value.unsqueeze(-1))
 
 
 def action_dtype(space: gym.Space[Any]) -> Any:

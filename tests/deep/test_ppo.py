@@ -191,10 +191,17 @@ def test_checkpoint_with_per_parameter_optimizer_state_still_loads(tmp_path: Pat
     agent = pl.deep.PPO("CartPole-v1", n_envs=2, n_steps=32, n_epochs=1, seed=0)
     agent.learn(64)
     flat = agent.optimizer.state_dict()
-    sizes = [p.numel() for p in agent.net.parameters()]
-    split = [dict(zip(("exp_avg", "exp_avg_sq"), parts, strict=True)) for parts in zip(
-        *(flat["state"][0][k].split(sizes) for k in ("exp_avg", "exp_avg_sq")), strict=True
-    )]  # fmt: skip
+    buf = agent._flat
+    assert buf is not None
+    params = list(agent.net.parameters())
+    sizes = [p.numel() for p in params]
+
+    def own(p: torch.Tensor, key: str) -> torch.Tensor:  # p's slice of a flat moment
+        k = next(i for i, q in enumerate(buf.params) if q is p)
+        start = buf.offsets[k]
+        return flat["state"][0][key][start : start + p.numel()].view_as(p)
+
+    split = [{k: own(p, k) for k in ("exp_avg", "exp_avg_sq")} for p in params]
     old = {
         "state": {i: {"step": flat["state"][0]["step"], **s} for i, s in enumerate(split)},
         "param_groups": [{**flat["param_groups"][0], "params": list(range(len(sizes)))}],

@@ -174,7 +174,7 @@ class FlatParameters:
         params: The parameters; each must be a leaf tensor of float dtype.
     """
 
-    def __init__(self, params: Sequence[nn.Parameter]) -> None:
+    def __init__(self, params: Sequence[torch.Tensor]) -> None:
         self.params = list(params)
         sizes = [p.numel() for p in self.params]
         dtype = self.params[0].dtype
@@ -182,30 +182,42 @@ class FlatParameters:
         self.flat = nn.Parameter(data)
         self.flat.grad = torch.zeros_like(data)
         offset = 0
+        self.offsets: list[int] = []  # where each parameter starts in the buffer
         for p, n in zip(self.params, sizes, strict=True):
+            self.offsets.append(offset)
             p.data = data[offset : offset + n].view_as(p)
             p.grad = self.flat.grad[offset : offset + n].view_as(p)
             offset += n
 
-    def state_from_per_parameter(self, state: dict[str, Any]) -> dict[str, Any]:
+    def state_from_per_parameter(
+        self, state: dict[str, Any], order: Sequence[torch.Tensor] | None = None
+    ) -> dict[str, Any]:
         """An optimizer ``state_dict`` with one entry per parameter, made flat.
 
         Checkpoints written before parameters were flattened keep Adam's moments per
-        parameter; this concatenates them (in the parameters' order) so that the flat
+        parameter; this concatenates them in the buffer's order so that the flat
         optimizer resumes exactly where the old one stopped. A state that already is
         flat comes back unchanged.
+
+        Args:
+            state: The per-parameter optimizer state.
+            order: The parameters in the order the old optimizer listed them (default:
+                the buffer's order).
         """
         groups = state.get("param_groups", [])
         ids = [i for g in groups for i in g.get("params", [])]
-        if len(ids) == 1 or len(ids) != len(self.params):
+        old_order = list(order) if order is not None else self.params
+        if len(ids) == 1 or len(ids) != len(self.params) or len(old_order) != len(ids):
             return state
+        slot = {id(p): i for p, i in zip(old_order, ids, strict=True)}
         per = state.get("state", {})
         flat_state: dict[str, Any] = {}
         if per:
-            first = per[ids[0]]
+            first = per[slot[id(self.params[0])]]
             for key, value in first.items():
-                if isinstance(value, torch.Tensor) and value.numel() == self.params[0].numel():
-                    flat_state[key] = torch.cat([per[i][key].reshape(-1) for i in ids])
+                if isinstance(value, torch.Tensor) and value.shape == self.params[0].shape:
+                    parts = [per[slot[id(p)]][key].reshape(-1) for p in self.params]
+                    flat_state[key] = torch.cat(parts)
                 else:
                     flat_state[key] = value
         group = dict(groups[0])

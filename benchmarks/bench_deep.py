@@ -27,6 +27,7 @@ Usage: ``python benchmarks/bench_deep.py [--per-step] [--rounds 3] [--seeds 5]
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import statistics
 import time
@@ -58,23 +59,32 @@ class Result:
     train_seconds: float = 0.0  # training time only (evaluations excluded)
     steps: int = 0
     solve_seconds: float | None = None  # training time until the first solved evaluation
+    solve_cpu_seconds: float | None = None  # the same in CPU time of the process
     solve_steps: int | None = None
     final_mean: float = float("nan")
     evals: list[tuple[int, float]] = field(default_factory=list)
 
 
 class _Clock:
-    """Training time with evaluation pauses taken out."""
+    """Training time, wall-clock and CPU, with evaluation pauses taken out."""
 
     def __init__(self) -> None:
-        self.t0 = time.perf_counter()
-        self.paused = 0.0
+        self.t0, self.c0 = time.perf_counter(), time.process_time()
+        self.paused = self.paused_cpu = 0.0
+        self._pause_start = (0.0, 0.0)
 
     def elapsed(self) -> float:
         return time.perf_counter() - self.t0 - self.paused
 
-    def pause(self, seconds: float) -> None:
-        self.paused += seconds
+    def elapsed_cpu(self) -> float:
+        return time.process_time() - self.c0 - self.paused_cpu
+
+    def start_pause(self) -> None:
+        self._pause_start = (time.perf_counter(), time.process_time())
+
+    def end_pause(self) -> None:
+        self.paused += time.perf_counter() - self._pause_start[0]
+        self.paused_cpu += time.process_time() - self._pause_start[1]
 
 
 def _evaluate(act: Any, env_id: str, seed: int) -> float:
@@ -102,13 +112,14 @@ def run_policylab(
         if a.num_timesteps < nxt[0]:
             return None
         nxt[0] += every
-        t = clock.elapsed()
-        t_eval = time.perf_counter()
+        t, c = clock.elapsed(), clock.elapsed_cpu()
+        clock.start_pause()
         mean = _evaluate(lambda o: a.predict(o, deterministic=True), env_id, seed)
-        clock.pause(time.perf_counter() - t_eval)
+        clock.end_pause()
         res.evals.append((a.num_timesteps, mean))
         if mean >= thr and res.solve_steps is None:
             res.solve_seconds, res.solve_steps = t, a.num_timesteps
+            res.solve_cpu_seconds = c
             return None if full_budget else False
         return None
 
@@ -150,13 +161,14 @@ def run_sb3(algo: str, env_id: str, seed: int, full_budget: bool = True) -> Resu
         def _on_step(self) -> bool:
             if self.num_timesteps >= self.next:
                 self.next += every
-                t = clock.elapsed()
-                t_eval = time.perf_counter()
+                t, c = clock.elapsed(), clock.elapsed_cpu()
+                clock.start_pause()
                 mean = _evaluate(act, env_id, seed)
-                clock.pause(time.perf_counter() - t_eval)
+                clock.end_pause()
                 res.evals.append((self.num_timesteps, mean))
                 if mean >= thr and res.solve_steps is None:
                     res.solve_seconds, res.solve_steps = t, self.num_timesteps
+                    res.solve_cpu_seconds = c
                     return full_budget
             return True
 
@@ -181,9 +193,9 @@ def _fmt(xs: list[float], digits: int = 1) -> str:
 def table(results: list[Result], full_budget: bool = False) -> str:
     rows = [
         "| algorithm | env | library (settings) | budget (steps) | seeds solved "
-        "| time to first solve, s: median (range) | steps to first solve: median (range) "
-        "| SB3 / policylab, median time to solve |",
-        "|---|---|---|---|---|---|---|---|",
+        "| CPU time to first solve, s: median (range) | SB3 / policylab, median CPU time "
+        "| wall-clock time, s: median (range) | steps to first solve: median (range) |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     keys = sorted({(r.algo, r.env_id) for r in results}, key=lambda k: (k[1], k[0]))
     for algo, env_id in keys:
@@ -191,16 +203,16 @@ def table(results: list[Result], full_budget: bool = False) -> str:
             lib: [r for r in results if (r.algo, r.env_id, r.library) == (algo, env_id, lib)]
             for lib in ("policylab", ZOO_LABEL, "SB3")
         }
-        times = {
-            lib: [r.solve_seconds for r in rs if r.solve_seconds is not None]
+        cpu = {
+            lib: [r.solve_cpu_seconds for r in rs if r.solve_cpu_seconds is not None]
             for lib, rs in by_lib.items()
         }
         for lib, rs in by_lib.items():
             if not rs:
                 continue
             ratio = (
-                f"{statistics.median(times['SB3']) / statistics.median(times[lib]):.1f}x"
-                if times[lib] and times["SB3"] and lib != "SB3"
+                f"{statistics.median(cpu['SB3']) / statistics.median(cpu[lib]):.1f}x"
+                if cpu[lib] and cpu["SB3"] and lib != "SB3"
                 else ("" if lib == "SB3" else "-")
             )
             settings = {"policylab": "its defaults", ZOO_LABEL: "the zoo's, as SB3", "SB3": "zoo"}[
@@ -208,11 +220,11 @@ def table(results: list[Result], full_budget: bool = False) -> str:
             ]
             solved = [r for r in rs if r.solve_steps is not None]
             steps = [float(r.solve_steps) for r in solved if r.solve_steps is not None]
+            wall = [r.solve_seconds for r in solved if r.solve_seconds is not None]
             rows.append(
                 f"| {algo.upper()} | {env_id} | {lib.split(',')[0]} ({settings}) | "
-                f"{rs[0].budget:,} | "
-                f"{len(solved)}/{len(rs)} | {_fmt(times[lib])} | {_fmt(steps, 0)} | "
-                f"{ratio} |"
+                f"{rs[0].budget:,} | {len(solved)}/{len(rs)} | {_fmt(cpu[lib])} | {ratio} | "
+                f"{_fmt(wall)} | {_fmt(steps, 0)} |"
             )
     return "\n".join(rows)
 
@@ -397,6 +409,64 @@ def per_step(envs: list[str], algos: list[str], rounds: int) -> list[StepResult]
     return results
 
 
+def _mm_seconds(m: int, k: int, n: int, repeats: int = 200) -> float:
+    """CPU seconds of one (m, k) @ (k, n) float32 product (the fastest of 5 batches)."""
+    a, b = torch.randn(m, k), torch.randn(k, n)
+    for _ in range(20):
+        torch.mm(a, b)
+    best = float("inf")
+    for _ in range(5):
+        c0 = time.process_time()
+        for _ in range(repeats):
+            torch.mm(a, b)
+        best = min(best, (time.process_time() - c0) / repeats)
+    return best
+
+
+def _mlp_mm_seconds(dims: list[int], batch: int, backward: bool) -> float:
+    """The matrix products of an MLP's forward pass (and its backward pass) on a batch."""
+    t = 0.0
+    for i, (d_in, d_out) in enumerate(itertools.pairwise(dims)):
+        t += _mm_seconds(batch, d_in, d_out)  # forward
+        if backward:
+            t += min(_mm_seconds(d_out, batch, d_in), _mm_seconds(d_in, batch, d_out))  # dW
+            if i > 0:
+                t += _mm_seconds(batch, d_out, d_in)  # dL/d(input)
+    return t
+
+
+def matmul_bound(algo: str, env_id: str) -> float:
+    """Env steps per CPU-second if a step cost only the matrix products it needs.
+
+    The products of the acting forward passes and of the gradient steps (forward and
+    backward through each MLP; DQN's target network forward), at the zoo's settings:
+    no implementation of the same arithmetic runs faster on this CPU with one thread.
+    """
+    f = identical_settings(algo, env_id)
+    space = pl.deep.make_vec_env(env_id, 1)
+    obs = int(np.prod(space.single_observation_space.shape))
+    n_act = int(space.single_action_space.n)
+    hidden = list(f.get("hidden", (64, 64)))
+    n_envs = int(f.get("n_envs", 1))
+    if algo == "ppo":
+        rollout = int(f["n_steps"]) * n_envs
+        batch = int(f.get("batch_size", 64))
+        per_grad = _mlp_mm_seconds([obs, *hidden, n_act], batch, True) + _mlp_mm_seconds(
+            [obs, *hidden, 1], batch, True
+        )
+        grads_per_step = int(f.get("n_epochs", 10)) * max(1, round(rollout / batch)) / rollout
+        act = _mlp_mm_seconds([obs, *hidden, n_act], n_envs, False) + _mlp_mm_seconds(
+            [obs, *hidden, 1], n_envs, False
+        )
+    else:
+        batch = int(f.get("batch_size", 32))
+        dims = [obs, *hidden, n_act]
+        per_grad = _mlp_mm_seconds(dims, batch, True) + _mlp_mm_seconds(dims, batch, False)
+        grads_per_step = int(f.get("gradient_steps", 1)) / int(f.get("train_freq", 4))
+        act = _mlp_mm_seconds(dims, n_envs, False)
+    return 1.0 / (per_grad * grads_per_step + act / n_envs)
+
+
 def per_step_table(results: list[StepResult]) -> str:
     rows = [
         "| algorithm | env | library | env steps/s: median (range) | policylab / SB3 "
@@ -444,6 +514,11 @@ def main() -> None:
     )
     ap.add_argument("--rounds", type=int, default=3, help="timed runs per library (--per-step)")
     ap.add_argument(
+        "--matmul-bound",
+        action="store_true",
+        help="print the steps per CPU-second the matrix products alone would allow, and stop",
+    )
+    ap.add_argument(
         "--full-budget",
         action="store_true",
         help="train both libraries to their whole budgets instead of stopping once solved",
@@ -451,6 +526,14 @@ def main() -> None:
     args = ap.parse_args()
     torch.set_num_threads(1)
     envs, algos = args.envs.split(","), args.algos.split(",")
+    if args.matmul_bound:
+        print("| algorithm | env | env steps per CPU-second, matrix products alone |")
+        print("|---|---|---|")
+        for env_id in envs:
+            for algo in algos:
+                print(f"| {algo.upper()} | {env_id} | {matmul_bound(algo, env_id):,.0f} |")
+        print(f"load average {os.getloadavg()[0]:.1f} on 2 cores")
+        return
     load0 = os.getloadavg()
     t0 = time.perf_counter()
     if args.per_step:
@@ -476,9 +559,10 @@ def main() -> None:
             "The split (env step, policy forward on the acting path, update, rest) is the "
             "share of one further cProfile'd run of each (cProfile adds a per-call cost, "
             "so it overstates Python-heavy parts). The env step is each library's own: "
-            "policylab steps CartPole-v1 with Gymnasium's NumPy-vectorised CartPole, "
-            "SB3 with a DummyVecEnv of single envs; Acrobot-v1 is a loop over single envs "
-            "in both."
+            "policylab steps CartPole-v1 with Gymnasium's NumPy-vectorised CartPole and "
+            "Acrobot-v1 with its own NumPy-vectorised Acrobot (Gymnasium's dynamics bit "
+            "for bit), SB3 both with a DummyVecEnv of single envs; LunarLander-v3 is a "
+            "loop over single envs in both."
         )  # fmt: skip
     else:
         section = args.section or "Deep RL: time to first solve"
@@ -514,7 +598,10 @@ def main() -> None:
         notes = (
             f"Seeds 0-{args.seeds - 1}, each library with its recommended settings "
             "(policylab: `policylab train`'s defaults, `pl.deep.default_config`, the zoo "
-            "settings plus `policylab.deep.zoo.TUNED`; SB3: the zoo settings). One "
+            "settings plus `policylab.deep.zoo.TUNED`, which changes nothing for PPO; SB3: "
+            "the zoo settings). Times are of training only, in CPU seconds of the process "
+            "(one torch thread; less disturbed by the machine's other jobs than the wall "
+            "clock, which is given too). One "
             f"protocol for both: evaluations ({evals} steps) of 100 greedy episodes, not "
             "counted in the times; training stops at the first evaluation that reaches "
             "the threshold (CartPole-v1 475, Acrobot-v1 -100, LunarLander-v3 200). Both "

@@ -7,7 +7,8 @@ import pytest
 import torch
 
 import policylab as pl
-from policylab.deep.dqn.losses import q_learning_targets
+from policylab.deep.common.networks import clip_grad_norm
+from policylab.deep.dqn.losses import q_learning_targets, td_loss, td_loss_grad
 from policylab.deep.dqn.networks import QNetwork
 
 
@@ -72,3 +73,57 @@ def test_epsilon_decays_linearly() -> None:
     assert agent.epsilon == pytest.approx(1.0 - 0.5 * 0.9)
     agent.num_timesteps = 900
     assert agent.epsilon == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize(("double_q", "loss"), [(False, "huber"), (True, "mse")])
+def test_hand_written_round_equals_autograd_steps(double_q: bool, loss: str) -> None:
+    # one round of gradient steps by hand (minibatches drawn at once, one target pass)
+    # against the same minibatches stepped one by one with autograd
+    def agent() -> pl.deep.DQN:
+        a = pl.deep.DQN(
+            "CartPole-v1", hidden=(16, 16), learning_starts=10_000, gradient_steps=5,
+            batch_size=8, double_q=double_q, loss=loss, learning_rate=1e-2, seed=3,
+        )  # fmt: skip
+        a.learn(300)  # fills the replay buffer, no update yet
+        assert a.n_updates == 0 and a.q.chain is not None
+        return a
+
+    fast, slow = agent(), agent()
+    fast._train_steps_by_hand()
+    b = slow.replay.sample(5 * 8)  # the same draws: the generators are in the same state
+    for k in range(5):
+        s = slice(8 * k, 8 * (k + 1))
+        obs, next_obs = torch.as_tensor(b.obs[s]), torch.as_tensor(b.next_obs[s])
+        with torch.no_grad():
+            online = slow.q(next_obs) if double_q else None
+            y = q_learning_targets(
+                torch.as_tensor(b.returns[s]), torch.as_tensor(b.discounts[s]),
+                slow.q_target(next_obs), online,
+            )  # fmt: skip
+        q = slow.q(obs).gather(1, torch.as_tensor(b.actions[s]).long().unsqueeze(1)).squeeze(1)
+        slow._flat.flat.grad.zero_()  # type: ignore[union-attr]
+        td_loss(y - q, torch.ones(8), loss).backward()  # type: ignore[no-untyped-call]
+        clip_grad_norm(slow._params, slow.config.max_grad_norm)
+        slow.optimizer.step()
+    for p, e in zip(fast.q.parameters(), slow.q.parameters(), strict=True):
+        torch.testing.assert_close(p, e, rtol=1e-5, atol=1e-6)
+    assert not torch.equal(fast.q.head[0].weight, fast.q_target.head[0].weight)
+
+
+def test_td_loss_grad_equals_autograd() -> None:
+    td = torch.tensor([-3.0, -1.0, -0.4, 0.0, 0.7, 1.0, 2.5], dtype=torch.float64)
+    w = torch.tensor([1.0, 0.5, 2.0, 1.0, 0.1, 1.0, 3.0], dtype=torch.float64)
+    for kind in ("huber", "mse"):
+        x = td.clone().requires_grad_()
+        td_loss(x, w, kind).backward()  # type: ignore[no-untyped-call]
+        loss, grad = td_loss_grad(td, w, kind)
+        torch.testing.assert_close(loss, td_loss(td, w, kind))
+        torch.testing.assert_close(grad, x.grad, rtol=0, atol=1e-15)
+
+
+def test_prioritized_replay_still_learns_with_flat_parameters() -> None:
+    agent = pl.deep.DQN("CartPole-v1", hidden=(16,), learning_starts=100, prioritized=True, seed=0)
+    before = [p.detach().clone() for p in agent.q.parameters()]
+    agent.learn(400)
+    assert agent.n_updates > 0
+    assert all(not torch.equal(p, b) for p, b in zip(agent.q.parameters(), before, strict=True))

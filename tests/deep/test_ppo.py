@@ -2,11 +2,22 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
 import numpy as np
 import pytest
 import torch
 
 import policylab as pl
+from policylab.deep.ppo.losses import (
+    clipped_surrogate_loss,
+    clipped_surrogate_loss_grad,
+    value_loss,
+    value_loss_grad,
+)
+from policylab.deep.ppo.networks import ActorCritic
 from policylab.exceptions import InvalidArgumentError
 
 
@@ -96,7 +107,7 @@ def test_bad_env_and_obs_are_refused() -> None:
 
 
 def test_ppo_solves_cartpole() -> None:
-    """The tuned CartPole defaults reach the 475 threshold over 100 greedy episodes."""
+    """The CartPole defaults (the zoo's) reach the 475 threshold over 100 greedy episodes."""
     fields, _ = pl.deep.default_config("ppo", "CartPole-v1")
     agent = pl.deep.PPO("CartPole-v1", seed=0, **fields)
     solved: list[float] = []
@@ -118,6 +129,93 @@ def test_default_config_untuned_is_the_zoo_exactly() -> None:
     zoo, steps = pl.deep.default_config("ppo", "CartPole-v1", tuned=False)
     assert steps == 100_000
     assert (zoo["n_envs"], zoo["n_steps"], zoo["batch_size"], zoo["n_epochs"]) == (8, 32, 256, 20)
-    assert "activation" not in zoo and tuned["activation"] == "relu"
+    assert "activation" not in zoo and tuned == zoo  # PPO keeps the zoo's settings
     dqn, _ = pl.deep.default_config("dqn", "Acrobot-v1", tuned=False)
     assert dqn["gradient_steps"] == dqn["train_freq"] == 4  # the zoo's -1: one per env step
+
+
+@pytest.mark.parametrize(
+    ("action_space", "act", "clip_vf"),
+    [
+        (gym.spaces.Discrete(3), "tanh", None),
+        (gym.spaces.Discrete(2), "relu", 0.1),
+        (gym.spaces.Box(-1.0, 1.0, (2,)), "elu", None),
+        (gym.spaces.Box(-1.0, 1.0, (2,)), "tanh", 0.1),
+    ],
+)
+def test_hand_written_update_gradient_equals_autograd(
+    action_space: gym.Space[Any], act: str, clip_vf: float | None
+) -> None:
+    g = torch.Generator().manual_seed(0)
+    net = ActorCritic(gym.spaces.Box(-1.0, 1.0, (5,)), action_space, (16, 8), act, 0.3, g)
+    net = net.double()
+    assert net.by_hand
+    with torch.no_grad():  # away from the initialisation, so every term has a gradient
+        for p in net.parameters():
+            p.add_(0.3 * torch.randn(p.shape, generator=g, dtype=p.dtype))
+    n = 64
+    obs = torch.randn(n, 5, generator=g, dtype=torch.float64)
+    actions = (
+        torch.randint(0, int(action_space.n), (n,), generator=g)
+        if isinstance(action_space, gym.spaces.Discrete)
+        else torch.randn(n, 2, generator=g, dtype=torch.float64)
+    )
+    with torch.no_grad():
+        old_logp = net.evaluate_actions(obs, actions)[0]
+        old_logp += 0.3 * torch.randn(n, generator=g, dtype=torch.float64)
+    old_v, adv, ret = torch.randn(3, n, generator=g, dtype=torch.float64)
+    ent_coef, vf_coef = 0.01, 0.5
+    logp, ent, v = net.evaluate_actions(obs, actions)
+    ratio = (logp - old_logp).exp()
+    loss = (
+        clipped_surrogate_loss(ratio, adv, 0.2)
+        + vf_coef * value_loss(v, old_v, ret, clip_vf)
+        - ent_coef * ent.mean()
+    )
+    loss.backward()  # type: ignore[no-untyped-call]
+    expected = [p.grad.clone() for p in net.parameters()]  # type: ignore[union-attr]
+    net.zero_grad(set_to_none=True)
+    logp2, ent2, v2, cache = net.forward_cached(obs, actions)
+    for a, b in ((logp2, logp), (ent2, ent), (v2, v)):
+        torch.testing.assert_close(a, b.detach(), rtol=0, atol=1e-12)
+    ratio2 = (logp2 - old_logp).exp()
+    _, g_ratio = clipped_surrogate_loss_grad(ratio2, adv, 0.2)
+    _, g_v = value_loss_grad(v2, old_v, ret, clip_vf)
+    net.backward_cached(cache, g_ratio * ratio2, -ent_coef / n, vf_coef * g_v)
+    for p, e in zip(net.parameters(), expected, strict=True):
+        torch.testing.assert_close(p.grad, e, rtol=0, atol=1e-12)
+
+
+def test_checkpoint_with_per_parameter_optimizer_state_still_loads(tmp_path: Path) -> None:
+    # checkpoints written before the flat parameter buffer kept Adam's moments per layer
+    agent = pl.deep.PPO("CartPole-v1", n_envs=2, n_steps=32, n_epochs=1, seed=0)
+    agent.learn(64)
+    flat = agent.optimizer.state_dict()
+    buf = agent._flat
+    assert buf is not None
+    params = list(agent.net.parameters())
+    sizes = [p.numel() for p in params]
+
+    def own(p: torch.Tensor, key: str) -> torch.Tensor:  # p's slice of a flat moment
+        k = next(i for i, q in enumerate(buf.params) if q is p)
+        start = buf.offsets[k]
+        return flat["state"][0][key][start : start + p.numel()].view_as(p)
+
+    split = [{k: own(p, k) for k in ("exp_avg", "exp_avg_sq")} for p in params]
+    old = {
+        "state": {i: {"step": flat["state"][0]["step"], **s} for i, s in enumerate(split)},
+        "param_groups": [{**flat["param_groups"][0], "params": list(range(len(sizes)))}],
+    }
+    tensors = agent._state_tensors(training_state=True)
+    tensors["optimizer"] = old
+    other = pl.deep.PPO("CartPole-v1", n_envs=2, n_steps=32, n_epochs=1, seed=1)
+    other._load_state_tensors(tensors)
+    for key in ("exp_avg", "exp_avg_sq", "step"):
+        torch.testing.assert_close(
+            other.optimizer.state_dict()["state"][0][key], flat["state"][0][key]
+        )
+    for a, b in zip(other.state_parameters(), agent.state_parameters(), strict=True):
+        torch.testing.assert_close(a, b, rtol=0, atol=0)
+    agent.save(tmp_path / "a.pt", training_state=True)
+    back = pl.deep.PPO.load(tmp_path / "a.pt")
+    assert back.optimizer.state_dict()["state"][0]["exp_avg"].shape == (sum(sizes),)

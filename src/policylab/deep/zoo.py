@@ -241,12 +241,11 @@ ZOO["ppo"].update(
 # policylab's own changes on top of the zoo (same keys). SB3's DQN is vanilla DQN;
 # policylab's default is Double DQN (DQNConfig.double_q).
 TUNED: dict[str, dict[str, dict[str, Any]]] = {
-    "ppo": {
-        # ReLU instead of tanh: torch's tanh costs ~15x a ReLU on this CPU and ReLU learns
-        # CartPole as fast; 16 envs x 16 steps keeps the zoo's 256-step rollouts with half
-        # the policy forward passes.
-        "CartPole-v1": dict(activation="relu", n_envs=16, n_steps=16),
-    },
+    # PPO has no changes: on CartPole-v1 the zoo's settings reach the first solved
+    # evaluation in fewer steps (median 15k against 25k over 5 seeds) than ReLU with 16
+    # envs x 16 steps did, and with the update written out by hand tanh no longer costs
+    # more than ReLU.
+    "ppo": {},
     "dqn": {
         # The zoo's 128 gradient steps of batch 64 every 256 env steps cost most of SB3's
         # time; 32 steps of batch 512 on a 64x64 ReLU network replay as many samples in a

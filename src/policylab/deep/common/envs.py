@@ -1,7 +1,8 @@
 """Gymnasium vector environments for the deep agents (``gymnasium.vector``).
 
 An env id becomes ``gymnasium.make_vec``: the NumPy-vectorised implementation where
-the environment has one (CartPole), otherwise a ``SyncVectorEnv``. Atari ids
+the environment has one (CartPole; policylab's :class:`AcrobotVectorEnv` for
+Acrobot-v1), otherwise a ``SyncVectorEnv``. Atari ids
 (``ALE/Pong-v5``) get Gymnasium's ``AtariPreprocessing`` (no-op starts, frame skip 4,
 84x84 grey frames) and ``FrameStackObservation`` (4 frames). All vector envs run in
 Gymnasium's default next-step autoreset mode, which the agents rely on.
@@ -14,10 +15,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
+from numpy.typing import NDArray
 
 from policylab.exceptions import InvalidArgumentError
 
 __all__ = [
+    "AcrobotVectorEnv",
     "check_env_id",
     "env_id_of",
     "is_atari_id",
@@ -112,6 +115,8 @@ def make_vec_env(env: EnvLike, n_envs: int = 1) -> VectorEnv:
             venv = gym.vector.SyncVectorEnv([lambda: make_env(env) for _ in range(n_envs)])
         else:
             spec = check_env_id(env)
+            if env == "Acrobot-v1":
+                return AcrobotVectorEnv(n_envs)
             mode = "vector_entry_point" if spec.vector_entry_point is not None else "sync"
             try:
                 venv = gym.make_vec(env, num_envs=n_envs, vectorization_mode=mode)
@@ -190,3 +195,149 @@ def space_from_json(d: dict[str, Any]) -> gym.Space[Any]:
 
         return gym.spaces.Box(arr(d["low"]), arr(d["high"]), shape=shape, dtype=dtype)
     raise InvalidArgumentError(f"unknown space description {d!r}")
+
+
+class AcrobotVectorEnv(VectorEnv):
+    """Gymnasium's Acrobot-v1, N copies stepped together with NumPy.
+
+    The same dynamics as ``gymnasium.envs.classic_control.AcrobotEnv`` (Sutton and
+    Barto's equations, "book" variant, fourth-order Runge-Kutta over dt = 0.2, angles
+    wrapped to [-pi, pi], velocities clipped at 4 pi and 9 pi, reward -1 per step and 0
+    on reaching the height), the same operations in the same order on arrays instead of
+    scalars, with its 500-step time limit and Gymnasium's next-step autoreset, as
+    Gymnasium's own ``CartPoleVectorEnv`` does for CartPole. Like that one it draws
+    the start states of all copies from one generator (so a seed gives other episodes
+    than a ``SyncVectorEnv`` of single envs, equally distributed). A ``SyncVectorEnv``
+    of single Acrobots costs a Python call and a dozen tiny NumPy calls per copy and
+    Runge-Kutta stage; this costs them once for all copies.
+
+    Args:
+        num_envs: Number of copies N.
+        max_episode_steps: The time limit (500 for Acrobot-v1).
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}  # noqa: RUF012
+
+    dt = 0.2
+    LINK_LENGTH_1 = 1.0
+    LINK_MASS_1 = 1.0
+    LINK_MASS_2 = 1.0
+    LINK_COM_POS_1 = 0.5
+    LINK_COM_POS_2 = 0.5
+    LINK_MOI = 1.0
+    MAX_VEL_1 = 4 * np.pi
+    MAX_VEL_2 = 9 * np.pi
+    AVAIL_TORQUE = np.array([-1.0, 0.0, +1])
+
+    def __init__(self, num_envs: int = 1, max_episode_steps: int = 500) -> None:
+        from gymnasium.vector.utils import batch_space
+
+        self.num_envs = int(num_envs)
+        self.max_episode_steps = int(max_episode_steps)
+        high = np.array([1.0, 1.0, 1.0, 1.0, self.MAX_VEL_1, self.MAX_VEL_2], dtype=np.float32)
+        self.single_observation_space = gym.spaces.Box(low=-high, high=high, dtype=np.float32)
+        self.single_action_space = gym.spaces.Discrete(3)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.state = np.zeros((4, self.num_envs))
+        self.steps = np.zeros(self.num_envs, dtype=np.int32)
+        self.prev_done = np.zeros(self.num_envs, dtype=np.bool_)
+
+    def _start_states(self, n: int) -> NDArray[np.float32]:
+        """(4, n) start states: AcrobotEnv.reset's uniform(-0.1, 0.1, 4) in float32, per copy."""
+        out = self.np_random.uniform(low=-0.1, high=0.1, size=(n, 4)).astype(np.float32)
+        return np.ascontiguousarray(out.T)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        """Start every copy afresh (``seed`` seeds the generator of the start states)."""
+        super().reset(seed=seed)
+        start = self._start_states(self.num_envs)
+        self.state = start.astype(np.float64)
+        self.steps = np.zeros(self.num_envs, dtype=np.int32)
+        self.prev_done = np.zeros(self.num_envs, dtype=np.bool_)
+        return self._observe(start), {}
+
+    def _dsdt(self, s_augmented: NDArray[np.float64]) -> NDArray[np.float64]:
+        """AcrobotEnv._dsdt on (5, N) states (theta1, theta2, dtheta1, dtheta2, torque)."""
+        m1, m2 = self.LINK_MASS_1, self.LINK_MASS_2
+        l1, lc1, lc2 = self.LINK_LENGTH_1, self.LINK_COM_POS_1, self.LINK_COM_POS_2
+        I1 = I2 = self.LINK_MOI  # the moments of inertia, named as in AcrobotEnv
+        g = 9.8
+        a = s_augmented[-1]
+        theta1, theta2, dtheta1, dtheta2 = s_augmented[:-1]
+        pi = np.pi
+        cos2, sin2 = np.cos(theta2), np.sin(theta2)  # each computed once, used as before
+        d1 = m1 * lc1**2 + m2 * (l1**2 + lc2**2 + 2 * l1 * lc2 * cos2) + I1 + I2
+        d2 = m2 * (lc2**2 + l1 * lc2 * cos2) + I2
+        phi2 = m2 * lc2 * g * np.cos(theta1 + theta2 - pi / 2.0)
+        phi1 = (
+            -m2 * l1 * lc2 * dtheta2**2 * sin2
+            - 2 * m2 * l1 * lc2 * dtheta2 * dtheta1 * sin2
+            + (m1 * lc1 + m2 * l1) * g * np.cos(theta1 - pi / 2)
+            + phi2
+        )
+        ddtheta2 = (a + d2 / d1 * phi1 - m2 * l1 * lc2 * dtheta1**2 * sin2 - phi2) / (
+            m2 * lc2**2 + I2 - d2**2 / d1
+        )
+        ddtheta1 = -(d2 * ddtheta2 + phi1) / d1
+        return np.stack((dtheta1, dtheta2, ddtheta1, ddtheta2, np.zeros_like(a)))
+
+    def step(
+        self, actions: NDArray[Any]
+    ) -> tuple[
+        NDArray[np.float32],
+        NDArray[np.float64],
+        NDArray[np.bool_],
+        NDArray[np.bool_],
+        dict[str, Any],
+    ]:
+        """Step every copy; a copy whose episode ended on the previous step resets instead."""
+        a = np.asarray(actions)
+        if a.shape != (self.num_envs,) or a.dtype.kind not in "iu" or a.min() < 0 or a.max() > 2:
+            raise InvalidArgumentError(
+                f"actions must be {self.num_envs} integers in 0..2; got {actions!r}"
+            )
+        y0 = np.concatenate([self.state, self.AVAIL_TORQUE[a][None]])
+        # rk4 over t = [0, dt], as gymnasium's acrobot.rk4
+        dt = np.float64(self.dt) - np.float64(0.0)
+        dt2 = dt / 2.0
+        k1 = self._dsdt(y0)
+        k2 = self._dsdt(y0 + dt2 * k1)
+        k3 = self._dsdt(y0 + dt2 * k2)
+        k4 = self._dsdt(y0 + dt * k3)
+        ns = (y0 + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4))[:4]
+        for i in (0, 1):  # wrap(x, -pi, pi): whole turns off, one at a time
+            while np.any(big := ns[i] > np.pi):
+                ns[i] = np.where(big, ns[i] - 2 * np.pi, ns[i])
+            while np.any(small := ns[i] < -np.pi):
+                ns[i] = np.where(small, ns[i] + 2 * np.pi, ns[i])
+        ns[2] = np.minimum(np.maximum(ns[2], -self.MAX_VEL_1), self.MAX_VEL_1)
+        ns[3] = np.minimum(np.maximum(ns[3], -self.MAX_VEL_2), self.MAX_VEL_2)
+        self.state = ns
+        terminated = -np.cos(ns[0]) - np.cos(ns[1] + ns[0]) > 1.0
+        reward = np.where(terminated, 0.0, -1.0)
+        self.steps += 1
+        truncated = self.steps >= self.max_episode_steps
+        # next-step autoreset: the copies that ended on the previous step start again
+        reset = self.prev_done
+        obs = self._observe(ns)
+        if reset.any():
+            start = self._start_states(int(reset.sum()))
+            self.state[:, reset] = start
+            obs[reset] = self._observe(start)  # from the float32 state, as AcrobotEnv
+            self.steps[reset] = 0
+            reward[reset] = 0.0
+            terminated[reset] = False
+            truncated[reset] = False
+        self.prev_done = terminated | truncated
+        return obs, reward, terminated, truncated, {}
+
+    @staticmethod
+    def _observe(s: NDArray[Any]) -> NDArray[np.float32]:
+        """AcrobotEnv._get_ob of (4, n) states: (n, 6) cos, sin of both angles, velocities."""
+        cos, sin = np.cos, np.sin
+        return np.stack([cos(s[0]), sin(s[0]), cos(s[1]), sin(s[1]), s[2], s[3]], axis=1).astype(
+            np.float32
+        )

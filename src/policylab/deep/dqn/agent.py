@@ -14,8 +14,9 @@ from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import NStepWindow, PrioritizedReplayBuffer, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check, check_replay_settings, documented, option
+from policylab.deep.common.mlp_grad import FlatParameters, mlp_backward, mlp_forward
 from policylab.deep.common.networks import clip_grad_norm
-from policylab.deep.dqn.losses import q_learning_targets, td_loss
+from policylab.deep.dqn.losses import q_learning_targets, td_loss, td_loss_grad
 from policylab.deep.dqn.networks import QNetwork
 
 __all__ = ["DQN", "DQNConfig"]
@@ -101,8 +102,10 @@ class DQN(Agent):
             self.torch_gen,
         )
         self.q_target = copy.deepcopy(self.q).requires_grad_(False)
-        self._params = list(self.q.parameters())
-        self.optimizer = torch.optim.Adam(self.q.parameters(), lr=cfg.learning_rate, fused=True)
+        # the hand-written update keeps all parameters (and gradients) in one flat tensor
+        self._flat = FlatParameters(list(self.q.parameters())) if self.q.chain else None
+        self._params = [self._flat.flat] if self._flat else list(self.q.parameters())
+        self.optimizer = torch.optim.Adam(self._params, lr=cfg.learning_rate, fused=True)
         shape = tuple(self.observation_space.shape or ())
         obs_dtype = np.uint8 if self.observation_space.dtype == np.uint8 else np.float32
         if cfg.prioritized:
@@ -170,7 +173,10 @@ class DQN(Agent):
         """``gradient_steps`` gradient steps; returns their mean loss and Q (none if 0 steps)."""
         if self.config.gradient_steps == 0:
             return {}
-        stats = [self._train_step() for _ in range(self.config.gradient_steps)]
+        if self.q.chain is not None and not isinstance(self.replay, PrioritizedReplayBuffer):
+            stats = self._train_steps_by_hand()
+        else:
+            stats = [self._train_step() for _ in range(self.config.gradient_steps)]
         loss, q_mean = torch.stack(stats).double().mean(0).tolist()  # read once, at the end
         return {"loss": loss, "q_mean": q_mean}
 
@@ -195,7 +201,10 @@ class DQN(Agent):
         q = q_obs.gather(1, torch.as_tensor(b.actions).long().unsqueeze(1)).squeeze(1)
         td = y - q
         loss = td_loss(td, torch.as_tensor(b.weights), cfg.loss)
-        self.optimizer.zero_grad(set_to_none=True)
+        if self._flat is not None:  # autograd adds into the flat gradient's views
+            self._flat.flat.grad.zero_()  # type: ignore[union-attr]
+        else:
+            self.optimizer.zero_grad(set_to_none=True)
         loss.backward()  # type: ignore[no-untyped-call]
         clip_grad_norm(self._params, cfg.max_grad_norm)
         self.optimizer.step()
@@ -203,6 +212,52 @@ class DQN(Agent):
         if isinstance(self.replay, PrioritizedReplayBuffer):
             self.replay.update_priorities(b.indices, td.detach().numpy())
         return torch.stack([loss.detach(), q.detach().mean()])
+
+    def _train_steps_by_hand(self) -> list[torch.Tensor]:
+        """The round's ``gradient_steps`` steps of :meth:`_train_step`, uniform replay, MLP.
+
+        The same updates with less work: the replay buffer and the target network do
+        not change during a round, so its minibatches are drawn at once (G batches of
+        B uniform draws are G * B uniform draws) and Q_target(S', .) is one forward pass
+        over all of them (for DQN the targets y too; Double DQN's argmax uses the online
+        network of each step). The gradient is backpropagated by hand
+        (:mod:`policylab.deep.common.mlp_grad`).
+        """
+        cfg, chain = self.config, self.q.chain
+        assert chain is not None
+        n, bs = cfg.gradient_steps, cfg.batch_size
+        b = self.replay.sample(n * bs)
+        obs, next_obs = torch.as_tensor(b.obs), torch.as_tensor(b.next_obs)
+        actions = torch.as_tensor(b.actions).long().unsqueeze(1)
+        returns, discounts = torch.as_tensor(b.returns), torch.as_tensor(b.discounts)
+        weights = torch.as_tensor(b.weights)
+        with torch.no_grad():
+            next_target = self.q_target(next_obs)
+            y_all = (
+                None if cfg.double_q else q_learning_targets(returns, discounts, next_target, None)
+            )
+        stats = []
+        for k in range(n):
+            s = slice(k * bs, (k + 1) * bs)
+            if y_all is None:
+                with torch.no_grad():
+                    y = q_learning_targets(
+                        returns[s], discounts[s], next_target[s], self.q(next_obs[s])
+                    )
+            else:
+                y = y_all[s]
+            q_all, inputs = mlp_forward(chain, self.q.act, obs[s])
+            a = actions[s]
+            q = q_all.gather(1, a).squeeze(1)
+            loss, g_td = td_loss_grad(y - q, weights[s], cfg.loss)
+            # dL/dQ(S, .) is -dL/d delta at the action taken, 0 at the others (delta = y - Q)
+            g_out = torch.zeros_like(q_all).scatter_(1, a, g_td.neg_().unsqueeze(1))
+            mlp_backward(chain, self.q.act, inputs, g_out)
+            clip_grad_norm(self._params, cfg.max_grad_norm)
+            self.optimizer.step()
+            self.n_updates += 1
+            stats.append(torch.stack([loss, q.mean()]))
+        return stats
 
     def _update_target(self) -> None:
         """theta_target <- tau theta + (1 - tau) theta_target (a copy when tau = 1)."""
@@ -225,7 +280,10 @@ class DQN(Agent):
         self.q.load_state_dict(tensors["q"])
         self.q_target.load_state_dict(tensors["q_target"])
         if "optimizer" in tensors:
-            self.optimizer.load_state_dict(tensors["optimizer"])
+            state = tensors["optimizer"]
+            if self._flat is not None:  # a checkpoint from before the flat parameters
+                state = self._flat.state_from_per_parameter(state)
+            self.optimizer.load_state_dict(state)
         if "replay" in tensors:
             self.replay.load_state_dict(to_numpy_tree(tensors["replay"]))
         if "counters" in tensors:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 from torch.nn import functional
 
-__all__ = ["q_learning_targets", "td_loss"]
+__all__ = ["q_learning_targets", "td_loss", "td_loss_grad"]
 
 
 def q_learning_targets(
@@ -45,3 +45,24 @@ def td_loss(td_errors: torch.Tensor, weights: torch.Tensor, kind: str = "huber")
         else td_errors**2
     )
     return (weights * per).mean()
+
+
+def td_loss_grad(
+    td_errors: torch.Tensor, weights: torch.Tensor, kind: str = "huber"
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`td_loss` and its derivative dL/d delta_i over a batch of B TD errors.
+
+    L = (1/B) sum_i w_i l(delta_i) with l the Huber loss (delta 1) or the square:
+
+    Huber:   dL/d delta_i = w_i clip(delta_i, -1, 1) / B
+    squared: dL/d delta_i = 2 w_i delta_i / B
+    """
+    n = td_errors.numel()
+    if kind == "huber":
+        grad = torch.clamp(td_errors, -1.0, 1.0)
+        a = grad.abs()
+        per = a * (td_errors.abs() - 0.5 * a)  # 0.5 d^2 inside [-1, 1], |d| - 0.5 outside
+    else:
+        grad = 2.0 * td_errors
+        per = td_errors * td_errors
+    return (weights * per).mean(), grad.mul_(weights).mul_(1.0 / n)

@@ -13,9 +13,16 @@ from numpy.typing import NDArray
 from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import RolloutBuffer
 from policylab.deep.common.config import check, documented, option
+from policylab.deep.common.mlp_grad import FlatParameters
 from policylab.deep.common.networks import clip_grad_norm
 from policylab.deep.common.normalize import RewardScaler
-from policylab.deep.ppo.losses import clipped_surrogate_loss, normalized, value_loss
+from policylab.deep.ppo.losses import (
+    clipped_surrogate_loss,
+    clipped_surrogate_loss_grad,
+    normalized,
+    value_loss,
+    value_loss_grad,
+)
 from policylab.deep.ppo.networks import ActorCritic, action_dtype
 
 __all__ = ["PPO", "PPOConfig"]
@@ -96,10 +103,10 @@ class PPO(Agent):
             cfg.log_std_init,
             self.torch_gen,
         )
-        self._params = list(self.net.parameters())
-        self.optimizer = torch.optim.Adam(
-            self.net.parameters(), lr=cfg.learning_rate, eps=1e-5, fused=True
-        )
+        # the hand-written update keeps all parameters (and gradients) in one flat tensor
+        self._flat = FlatParameters(list(self.net.parameters())) if self.net.by_hand else None
+        self._params = [self._flat.flat] if self._flat is not None else list(self.net.parameters())
+        self.optimizer = torch.optim.Adam(self._params, lr=cfg.learning_rate, eps=1e-5, fused=True)
         self.buffer = RolloutBuffer(
             cfg.n_steps,
             cfg.n_envs,
@@ -163,16 +170,27 @@ class PPO(Agent):
             for mb in buf.minibatches(cfg.batch_size, self.rng):
                 i = torch.from_numpy(mb)
                 old_logp, old_v, advantages, returns = scalars[i].unbind(1)
-                logp, entropy, v = self.net.evaluate_actions(obs[i], actions[i])
-                log_ratio = logp - old_logp
-                ratio = log_ratio.exp()
                 adv = normalized(advantages) if cfg.normalize_advantage else advantages
-                pg_loss = clipped_surrogate_loss(ratio, adv, cfg.clip_range)
-                v_loss = value_loss(v, old_v, returns, vclip)
-                ent = entropy.mean()
-                loss = pg_loss + cfg.vf_coef * v_loss - cfg.ent_coef * ent
-                self.optimizer.zero_grad(set_to_none=True)
-                loss.backward()  # type: ignore[no-untyped-call]
+                if self.net.by_hand:  # every gradient is overwritten: no zero_grad
+                    logp, entropy, v, cache = self.net.forward_cached(obs[i], actions[i])
+                    log_ratio = logp - old_logp
+                    ratio = log_ratio.exp()
+                    pg_loss, g_ratio = clipped_surrogate_loss_grad(ratio, adv, cfg.clip_range)
+                    v_loss, g_v = value_loss_grad(v, old_v, returns, vclip)
+                    ent = entropy.mean()
+                    self.net.backward_cached(
+                        cache, g_ratio.mul_(ratio), -cfg.ent_coef / len(mb), g_v.mul_(cfg.vf_coef)
+                    )
+                else:
+                    self.optimizer.zero_grad(set_to_none=True)
+                    logp, entropy, v = self.net.evaluate_actions(obs[i], actions[i])
+                    log_ratio = logp - old_logp
+                    ratio = log_ratio.exp()
+                    pg_loss = clipped_surrogate_loss(ratio, adv, cfg.clip_range)
+                    v_loss = value_loss(v, old_v, returns, vclip)
+                    ent = entropy.mean()
+                    loss = pg_loss + cfg.vf_coef * v_loss - cfg.ent_coef * ent
+                    loss.backward()  # type: ignore[no-untyped-call]
                 clip_grad_norm(self._params, cfg.max_grad_norm)
                 self.optimizer.step()
                 self.n_updates += 1
@@ -199,6 +217,9 @@ class PPO(Agent):
 
         self.net.load_state_dict(tensors["net"])
         if "optimizer" in tensors:
-            self.optimizer.load_state_dict(tensors["optimizer"])
+            state = tensors["optimizer"]
+            if self._flat is not None:  # a checkpoint from before the flat parameters
+                state = self._flat.state_from_per_parameter(state)
+            self.optimizer.load_state_dict(state)
         if "reward_scaler" in tensors and self.reward_scaler is not None:
             self.reward_scaler.rms.load_state_dict(to_numpy_tree(tensors["reward_scaler"]))

@@ -10,12 +10,16 @@ import numpy as np
 import torch
 from torch import nn
 
+from policylab.deep.common.mlp_grad import mlp_backward, mlp_forward, mlp_layers
 from policylab.deep.common.networks import build_torso, init_layer, is_image_space, torso_width
 from policylab.exceptions import InvalidArgumentError
 
 __all__ = ["ActorCritic"]
 
 _LOG_2PI = math.log(2 * math.pi)
+
+Cache = tuple[list[torch.Tensor], list[torch.Tensor], tuple[torch.Tensor, ...]]
+"""What :meth:`ActorCritic.forward_cached` keeps for :meth:`ActorCritic.backward_cached`."""
 
 
 class ActorCritic(nn.Module):
@@ -64,13 +68,22 @@ class ActorCritic(nn.Module):
         self.log_std = (
             nn.Parameter(torch.full((out,), float(log_std_init))) if self.continuous else None
         )
+        self.act = act
+        # plain MLPs (vector observations) are backpropagated by hand: see by_hand
+        actor = None if self.shared else mlp_layers(self.actor_torso, self.policy_head)
+        critic = None if self.shared else mlp_layers(self.critic_torso, self.value_head)
+        self._chains = None if actor is None or critic is None else (actor, critic)
 
     def value(self, obs: torch.Tensor) -> torch.Tensor:
         """V(s) for a batch, shape (B,)."""
+        if self._chains is not None and not torch.is_grad_enabled():
+            return mlp_forward(self._chains[1], self.act, obs)[0].squeeze(-1)
         v: torch.Tensor = self.value_head(self.critic_torso(obs)).squeeze(-1)
         return v
 
     def _policy_out(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        if self._chains is not None and not torch.is_grad_enabled():
+            return mlp_forward(self._chains[0], self.act, obs)[0], self.value(obs)
         if self.shared:
             h = self.actor_torso(obs)
             return self.policy_head(h), self.value_head(h).squeeze(-1)
@@ -94,7 +107,12 @@ class ActorCritic(nn.Module):
     def sample(
         self, obs: torch.Tensor, generator: torch.Generator | None, deterministic: bool = False
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Actions drawn from pi(. | s) (or its mode), their log-probabilities, and V(s)."""
+        """Actions drawn from pi(. | s) (or its mode), their log-probabilities, and V(s).
+
+        Under ``torch.no_grad`` or ``torch.inference_mode`` two MLPs run by
+        :func:`~policylab.deep.common.mlp_grad.mlp_forward`, the forward pass of the
+        hand-written update (the same numbers, without the modules' call overhead).
+        """
         out, v = self._policy_out(obs)
         if self.continuous:
             assert self.log_std is not None
@@ -116,6 +134,79 @@ class ActorCritic(nn.Module):
         out, v = self._policy_out(obs)
         logp, ent = self._log_prob_entropy(out, actions)
         return logp, ent, v
+
+    @property
+    def by_hand(self) -> bool:
+        """Whether :meth:`forward_cached` and :meth:`backward_cached` apply (two MLPs)."""
+        return self._chains is not None
+
+    def forward_cached(
+        self, obs: torch.Tensor, actions: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, Cache]:
+        """:meth:`evaluate_actions` without autograd, keeping what the backward pass needs.
+
+        Returns ``(log_prob, entropy, value, cache)``; pass ``cache`` to
+        :meth:`backward_cached`. Only for networks with :attr:`by_hand`.
+        """
+        assert self._chains is not None
+        actor, critic = self._chains
+        out, a_in = mlp_forward(actor, self.act, obs)
+        v, c_in = mlp_forward(critic, self.act, obs)
+        with torch.no_grad():
+            if self.continuous:
+                assert self.log_std is not None
+                std = self.log_std.exp()
+                z = (actions - out) / std
+                logp = (-0.5 * z * z - self.log_std - 0.5 * _LOG_2PI).sum(-1)
+                ent = (0.5 + 0.5 * _LOG_2PI + self.log_std).sum().expand(len(out))
+                extra: tuple[torch.Tensor, ...] = (z, std)
+            else:
+                log_pi = torch.log_softmax(out, dim=-1)
+                pi = log_pi.exp()
+                idx = actions.long().unsqueeze(-1)
+                logp = log_pi.gather(-1, idx).squeeze(-1)
+                ent = -(pi * log_pi).sum(-1)
+                extra = (idx, pi, log_pi, ent)
+        return logp, ent, v.squeeze(-1), (a_in, c_in, extra)
+
+    def backward_cached(
+        self,
+        cache: Cache,
+        grad_log_prob: torch.Tensor,
+        grad_entropy: float,
+        grad_value: torch.Tensor,
+    ) -> None:
+        """Set every parameter's ``.grad`` to dL/dtheta, by the chain rule through both MLPs.
+
+        L depends on the network through log pi(A_t | S_t), the entropy H_t and V(S_t):
+        ``grad_log_prob`` is (B,) dL/dlog pi(A_t | S_t), ``grad_entropy`` the dL/dH_t
+        shared by all t (-ent_coef / B), ``grad_value`` (B,) dL/dV(S_t). With o the
+        policy head's output,
+
+        categorical, p = softmax(o):  dlog p_a/do = onehot(a) - p,  dH/do = -p (log p + H)
+        Gaussian, z = (a - mu) / sigma:  dlog pi/dmu = z / sigma,
+            dlog pi/dlog sigma = z^2 - 1,  dH/dlog sigma = 1 (per dimension).
+        """
+        assert self._chains is not None
+        actor, critic = self._chains
+        a_in, c_in, extra = cache
+        with torch.no_grad():
+            g = grad_log_prob.unsqueeze(-1)
+            if self.continuous:
+                assert self.log_std is not None
+                z, std = extra
+                g_out = g * z / std
+                g_log_std = (g * (z * z - 1.0)).sum(0) + grad_entropy * len(z)
+                if self.log_std.grad is None:
+                    self.log_std.grad = g_log_std
+                else:
+                    self.log_std.grad.copy_(g_log_std)
+            else:
+                idx, pi, log_pi, ent = extra
+                g_out = pi * ((log_pi + ent.unsqueeze(-1)) * -grad_entropy - g)
+                g_out.scatter_add_(-1, idx, g)
+            mlp_backward(actor, self.act, a_in, g_out)
+            mlp_backward(critic, self.act, c_in, grad_value.unsqueeze(-1))
 
 
 def action_dtype(space: gym.Space[Any]) -> Any:

@@ -1,0 +1,96 @@
+"""The hand-written MLP backward pass against autograd, and the flat parameter buffer."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import pytest
+import torch
+from torch import nn
+
+from policylab.deep.common.mlp_grad import (
+    FlatParameters,
+    mlp_backward,
+    mlp_forward,
+    mlp_layers,
+)
+from policylab.deep.common.networks import MLP, build_torso
+from policylab.deep.ppo.losses import (
+    clipped_surrogate_loss,
+    clipped_surrogate_loss_grad,
+    value_loss,
+    value_loss_grad,
+)
+
+
+@pytest.mark.parametrize("act", ["tanh", "relu", "elu"])
+def test_mlp_backward_equals_autograd(act: str) -> None:
+    g = torch.Generator().manual_seed(0)
+    net = nn.Sequential(
+        build_torso(gym.spaces.Box(-1, 1, (3, 2)), (7, 5), act, g), MLP(5, (), 4, generator=g)
+    ).double()
+    chain = mlp_layers(net)
+    assert chain is not None and [lin.out_features for lin in chain] == [7, 5, 4]
+    x = torch.randn(11, 3, 2, dtype=torch.float64, generator=g)
+    w = torch.randn(11, 4, dtype=torch.float64, generator=g)
+    loss = (torch.sin(net(x)) * w).sum()  # any loss of the output
+    loss.backward()  # type: ignore[no-untyped-call]
+    expected = [p.grad.clone() for p in net.parameters()]  # type: ignore[union-attr]
+    out, inputs = mlp_forward(chain, act, x)
+    torch.testing.assert_close(out, net(x).detach(), rtol=0, atol=1e-12)
+    net.zero_grad(set_to_none=True)
+    mlp_backward(chain, act, inputs, torch.cos(out) * w)
+    for p, e in zip(net.parameters(), expected, strict=True):
+        torch.testing.assert_close(p.grad, e, rtol=0, atol=1e-12)
+
+
+def test_mlp_layers_refuses_what_is_not_a_plain_mlp() -> None:
+    assert mlp_layers(nn.Linear(3, 2)) is not None
+    assert mlp_layers(nn.Linear(3, 2), nn.Linear(2, 2)) is None  # no activation between
+    assert mlp_layers(nn.Linear(3, 2), nn.Tanh()) is None  # activation after the output
+    assert mlp_layers(nn.Conv2d(1, 1, 3)) is None
+    assert mlp_layers(build_torso(gym.spaces.Discrete(4), (8,), "tanh", None)) is None
+
+
+def test_ppo_loss_gradients_equal_autograd_including_ties() -> None:
+    # ratios inside, outside and exactly on the clip range; value errors on both sides
+    ratio = torch.tensor([0.5, 0.8, 1.0, 1.1, 1.2, 1.5, 1.5, 0.7], dtype=torch.float64)
+    adv = torch.tensor([1.0, -1.0, 0.5, -2.0, 1.0, 1.0, -1.0, 0.0], dtype=torch.float64)
+    r = ratio.clone().requires_grad_()
+    clipped_surrogate_loss(r, adv, 0.2).backward()  # type: ignore[no-untyped-call]
+    loss, grad = clipped_surrogate_loss_grad(ratio, adv, 0.2)
+    torch.testing.assert_close(loss, clipped_surrogate_loss(ratio, adv, 0.2))
+    torch.testing.assert_close(grad, r.grad, rtol=0, atol=1e-15)
+    v = torch.tensor([0.0, 1.0, 2.0, 0.5, -1.0, 0.3, 0.25, 3.0], dtype=torch.float64)
+    old = torch.tensor([0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5], dtype=torch.float64)
+    ret = torch.tensor([1.0, 0.0, 0.4, 0.5, 2.0, 0.2, 0.25, -1.0], dtype=torch.float64)
+    for clip in (None, 0.5, 0.25):
+        vv = v.clone().requires_grad_()
+        value_loss(vv, old, ret, clip).backward()  # type: ignore[no-untyped-call]
+        loss, grad = value_loss_grad(v, old, ret, clip)
+        torch.testing.assert_close(loss, value_loss(v, old, ret, clip))
+        torch.testing.assert_close(grad, vv.grad, rtol=0, atol=1e-15)
+
+
+def test_flat_parameters_are_views_and_old_optimizer_state_converts() -> None:
+    net = MLP(3, (4,), 2, generator=torch.Generator().manual_seed(0))
+    before = [p.detach().clone() for p in net.parameters()]
+    flat = FlatParameters(list(net.parameters()))
+    for p, b in zip(net.parameters(), before, strict=True):
+        assert torch.equal(p, b) and p.data_ptr() != b.data_ptr()
+    with torch.no_grad():
+        flat.flat.add_(1.0)
+    assert all(torch.equal(p, b + 1) for p, b in zip(net.parameters(), before, strict=True))
+    # an optimizer with one state per parameter (the layout before flattening) ...
+    per = torch.optim.Adam(list(net.parameters()), lr=0.1)
+    for p in net.parameters():
+        p.grad = torch.randn_like(p)
+    per.step()
+    one = torch.optim.Adam([flat.flat], lr=0.1)
+    one.load_state_dict(flat.state_from_per_parameter(per.state_dict()))
+    state = one.state_dict()["state"][0]
+    old = per.state_dict()["state"]
+    for key in ("exp_avg", "exp_avg_sq"):
+        torch.testing.assert_close(state[key], torch.cat([old[i][key].reshape(-1) for i in old]))
+    assert float(state["step"]) == 1.0
+    # ... and a flat one is left alone
+    assert flat.state_from_per_parameter(one.state_dict()) == one.state_dict()

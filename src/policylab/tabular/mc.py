@@ -57,7 +57,6 @@ from policylab.tabular.kernels import (
     epsilon_greedy_prob,
     exploring_start_state,
     generate_episode,
-    greedy_action,
     rng_states,
     sample_action,
     uniform_action,
@@ -65,7 +64,15 @@ from policylab.tabular.kernels import (
 )
 from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
-from policylab.tabular.schedules import Schedule, as_schedule, schedule_value
+from policylab.tabular.rules.mc import (
+    AVERAGE,
+    IS_CONTROL,
+    IS_PREDICTION,
+    episode_return,
+    first_visit_flags,
+    mc_episode_update,
+)
+from policylab.tabular.schedules import CONSTANT, Schedule, as_schedule, schedule_value
 from policylab.tabular.truth import GroundTruth, greedy_probs
 from policylab.validation import as_generator
 
@@ -88,130 +95,6 @@ __all__ = [
 ]
 
 Seed = int | np.random.Generator | None
-
-#: Update kinds of :func:`mc_episode_update`.
-AVERAGE, IS_PREDICTION, IS_CONTROL = 0, 1, 2
-
-
-# =============================================================================== update rules
-@nb.njit(cache=True, nogil=True)
-def episode_return(rewards: NDArray[np.float64], T: int, gamma: float) -> float:  # pragma: no cover
-    """G_0 = sum_{k=0}^{T-1} gamma^k R_{k+1} of the episode in ``rewards[:T]``."""
-    g = 0.0
-    for t in range(T - 1, -1, -1):
-        g = rewards[t] + gamma * g
-    return g
-
-
-@nb.njit(cache=True, nogil=True)
-def first_visit_flags(
-    keys: NDArray[np.int64], T: int, mark: NDArray[np.int64], stamp: int, flags: NDArray[np.bool_]
-) -> None:  # pragma: no cover - compiled
-    """flags[t] = True iff keys[t] does not occur in keys[:t] (the first visit at time t).
-
-    ``mark`` is a scratch array over all keys and ``stamp`` a number never used before
-    with it (the episode number), so nothing needs clearing between episodes.
-    """
-    for t in range(T):
-        k = keys[t]
-        if mark[k] != stamp:
-            mark[k] = stamp
-            flags[t] = True
-        else:
-            flags[t] = False
-
-
-@nb.njit(cache=True, nogil=True)
-def mc_episode_update(
-    kind: int,
-    q: NDArray[np.float64],
-    nq: NDArray[np.float64],
-    cq: NDArray[np.float64],
-    v: NDArray[np.float64],
-    nv: NDArray[np.float64],
-    cv: NDArray[np.float64],
-    n_actions: int,
-    buf_s: NDArray[np.int64],
-    buf_a: NDArray[np.int64],
-    buf_r: NDArray[np.float64],
-    buf_b: NDArray[np.float64],
-    T: int,
-    gamma: float,
-    first_visit: bool,
-    alpha: NDArray[np.float64],
-    weighted: bool,
-    target: NDArray[np.float64],
-    mask: NDArray[np.bool_],
-    keys: NDArray[np.int64],
-    flags_q: NDArray[np.bool_],
-    flags_v: NDArray[np.bool_],
-    mark_q: NDArray[np.int64],
-    mark_v: NDArray[np.int64],
-    stamp: int,
-) -> None:  # pragma: no cover - compiled
-    """Update the tables from one finished episode, backwards from t = T - 1 to 0.
-
-    G_t = R_{t+1} + gamma G_{t+1}. Flat tables: ``q, nq, cq`` over s * A + a and
-    ``v, nv, cv`` over s (values, visit counts, cumulative importance weights).
-
-    * ``AVERAGE`` (on-policy): N <- N + 1; Q(S_t, A_t) <- Q + alpha_N (G_t - Q), and
-      the same for V(S_t); alpha_N = schedule ``alpha`` at N (1/N: sample average).
-    * ``IS_PREDICTION``: rho_t = pi(A_t | S_t) / b(A_t | S_t); W_t = prod_{k=t+1}^{T-1}
-      rho_k for Q(S_t, A_t) and rho_t W_t for V(S_t). Ordinary importance sampling:
-      N <- N + 1, Q <- Q + (W G_t - Q) / N, the mean of W G over all visits. Weighted:
-      C <- C + W, Q <- Q + (W / C)(G_t - Q), i.e. sum W G / sum W.
-    * ``IS_CONTROL``: the same for the greedy target pi(s) = argmax_a Q(s, a) (updated
-      as it goes, Sutton & Barto section 5.7): after updating Q(S_t, A_t), W becomes 0
-      (weighted: stop) if A_t is not greedy, else W <- W / b(A_t | S_t).
-
-    With ``first_visit`` only the first visit of a key in the episode is used.
-    """
-    for t in range(T):
-        keys[t] = buf_s[t] * n_actions + buf_a[t]
-    if first_visit:
-        first_visit_flags(keys, T, mark_q, stamp, flags_q)
-        first_visit_flags(buf_s, T, mark_v, stamp, flags_v)
-    g = 0.0
-    w = 1.0
-    for t in range(T - 1, -1, -1):
-        g = buf_r[t] + gamma * g
-        s = buf_s[t]
-        k = keys[t]
-        use_q = (not first_visit) or flags_q[t]
-        use_v = (not first_visit) or flags_v[t]
-        if kind == 0:
-            if use_q:
-                nq[k] += 1.0
-                q[k] += schedule_value(alpha, nq[k]) * (g - q[k])
-            if use_v:
-                nv[s] += 1.0
-                v[s] += schedule_value(alpha, nv[s]) * (g - v[s])
-            continue
-        rho = target[k] / buf_b[t] if kind == 1 else 0.0
-        w_v = w * rho
-        if use_q:
-            nq[k] += 1.0
-            if weighted:
-                if w > 0.0:
-                    cq[k] += w
-                    q[k] += (w / cq[k]) * (g - q[k])
-            else:
-                q[k] += (w * g - q[k]) / nq[k]
-        if kind == 1 and use_v:
-            nv[s] += 1.0
-            if weighted:
-                if w_v > 0.0:
-                    cv[s] += w_v
-                    v[s] += (w_v / cv[s]) * (g - v[s])
-            else:
-                v[s] += (w_v * g - v[s]) / nv[s]
-        if kind == 2:
-            row = q[s * n_actions : (s + 1) * n_actions]
-            if buf_a[t] == greedy_action(row, mask[s]):
-                rho = 1.0 / buf_b[t]
-        w *= rho
-        if weighted and w == 0.0:
-            break
 
 
 # =============================================================================== fast path
@@ -1063,7 +946,7 @@ def mc_off_policy(
     if epsilon is not None:
         policy_kind = EPSILON_GREEDY
         eps = as_schedule(epsilon, Schedule.inverse(), "epsilon").check_range(0.0, 1.0, "epsilon")
-        if eps.kind == 0 and eps.a == 0.0:
+        if eps.kind == CONSTANT and eps.a == 0.0:
             raise InvalidArgumentError("an epsilon-greedy behaviour needs epsilon > 0 (coverage)")
     else:
         gen_policy, _ = _fixed_policy(problem, behavior, model, "mc_off_policy behavior")

@@ -35,16 +35,24 @@ from typing import Any
 
 import numpy as np
 from numba import njit
-from numba.extending import register_jitable
 
 from policylab.tabular.kernels import (
     env_reset,
     env_step,
     epsilon_greedy_action,
-    epsilon_greedy_prob,
     rand_below,
     sample_action,
     sample_next,
+)
+from policylab.tabular.rules.td import (
+    double_q_target,
+    expected_sarsa_target,
+    n_step_return,
+    q_learning_target,
+    sarsa_target,
+    td_error,
+    td_target,
+    td_update,
 )
 from policylab.tabular.schedules import schedule_value
 
@@ -94,108 +102,6 @@ def model_tuple(km: Any | None) -> tuple[Any, ...]:
             np.zeros(1),
         )
     return (km.indptr, km.next_states, km.probs, km.rewards, km.terminal, km.initial)
-
-
-# ---------------------------------------------------------------------------- update rules
-@register_jitable
-def td_update(estimate: float, alpha: float, target: float) -> float:
-    """NewEstimate = OldEstimate + alpha [Target - OldEstimate]  (S&B eq. 2.4)."""
-    return estimate + alpha * (target - estimate)
-
-
-@register_jitable
-def td_target(r: float, gamma: float, v_next: float, terminated: bool) -> float:
-    """The TD(0) target R_{t+1} + gamma V(S_{t+1}), with V(terminal) = 0  (S&B eq. 6.2)."""
-    if terminated:
-        return r
-    return r + gamma * v_next
-
-
-@register_jitable
-def td_error(r: float, gamma: float, v_next: float, v: float, terminated: bool) -> float:
-    """The TD error delta_t = R_{t+1} + gamma V(S_{t+1}) - V(S_t)  (S&B eq. 6.5)."""
-    return td_target(r, gamma, v_next, terminated) - v
-
-
-@register_jitable
-def sarsa_target(r: float, gamma: float, q_next: float, terminated: bool) -> float:
-    """The Sarsa target R_{t+1} + gamma Q(S_{t+1}, A_{t+1})  (S&B eq. 6.7)."""
-    if terminated:
-        return r
-    return r + gamma * q_next
-
-
-@register_jitable
-def q_learning_target(
-    r: float, gamma: float, q: Any, mask: Any, s_next: int, terminated: bool
-) -> float:
-    """The Q-learning target R_{t+1} + gamma max_a Q(S_{t+1}, a)  (S&B eq. 6.8).
-
-    ``q`` and ``mask`` are the whole (S, A) tables and ``s_next`` the row of S_{t+1}
-    (indexing them here, rather than passing a row view, keeps the compiled step loop
-    free of array temporaries).
-    """
-    if terminated:
-        return r
-    best = -np.inf
-    for a in range(q.shape[1]):
-        if mask[s_next, a] and q[s_next, a] > best:
-            best = q[s_next, a]
-    return r + gamma * best
-
-
-@register_jitable
-def expected_sarsa_target(
-    r: float, gamma: float, q_next_row: Any, mask_row: Any, epsilon: float, terminated: bool
-) -> float:
-    """R_{t+1} + gamma sum_a pi(a | S_{t+1}) Q(S_{t+1}, a), pi epsilon-greedy  (S&B eq. 6.9).
-
-    pi is the behaviour policy's epsilon-greedy (ties shared), as
-    :func:`~policylab.tabular.kernels.epsilon_greedy_prob` gives it.
-    """
-    if terminated:
-        return r
-    expected = 0.0
-    for a in range(q_next_row.shape[0]):
-        if mask_row[a]:
-            expected += epsilon_greedy_prob(q_next_row, mask_row, epsilon, a) * q_next_row[a]
-    return r + gamma * expected
-
-
-@register_jitable
-def double_q_target(
-    r: float, gamma: float, q_select_row: Any, q_eval_row: Any, mask_row: Any, terminated: bool
-) -> float:
-    """R_{t+1} + gamma Q2(S_{t+1}, argmax_a Q1(S_{t+1}, a))  (S&B eq. 6.10).
-
-    One table picks the action (its first maximiser), the other values it.
-    """
-    if terminated:
-        return r
-    best = -np.inf
-    arg = 0
-    for a in range(q_select_row.shape[0]):
-        if mask_row[a] and q_select_row[a] > best:
-            best = q_select_row[a]
-            arg = a
-    return r + gamma * float(q_eval_row[arg])
-
-
-@register_jitable
-def n_step_return(rewards: Any, start: int, end: int, gamma: float) -> tuple[float, float]:
-    """The n-step return's rewards, sum_{i=start+1}^{end} gamma^{i-start-1} R_i (S&B eq. 7.1).
-
-    Also returns gamma^{end-start}, the discount of the bootstrap term.
-
-    ``rewards`` is a ring buffer indexed ``i % len(rewards)``.
-    """
-    m = rewards.shape[0]
-    g = 0.0
-    p = 1.0
-    for i in range(start + 1, end + 1):
-        g += p * rewards[i % m]
-        p *= gamma
-    return g, p
 
 
 # ---------------------------------------------------------------------------- TD(0)
@@ -312,19 +218,19 @@ def one_step_control_kernel(
             counts[s, a] += 1
             alpha = schedule_value(alpha_params, float(counts[s, a]))
             a2 = 0
-            if rule == 0:
+            if rule == SARSA:
                 q_next = 0.0
                 if not terminated:
                     a2 = epsilon_greedy_action(q1[s2], mask[s2], epsilon, rng)
                     q_next = q1[s2, a2]
                 q1[s, a] = td_update(q1[s, a], alpha, sarsa_target(r, gamma, q_next, terminated))
-            elif rule == 1:
+            elif rule == Q_LEARNING:
                 target = q_learning_target(r, gamma, q1, mask, s2, terminated)
                 q1[s, a] = td_update(q1[s, a], alpha, target)
-            elif rule == 2:
+            elif rule == EXPECTED_SARSA:
                 target = expected_sarsa_target(r, gamma, q1[s2], mask[s2], epsilon, terminated)
                 q1[s, a] = td_update(q1[s, a], alpha, target)
-            elif rule == 3:
+            elif rule == DOUBLE_Q:
                 if rand_below(rng, 2) == 0:  # the coin: update Q1 (else Q2)
                     target = double_q_target(r, gamma, q1[s2], q2[s2], mask[s2], terminated)
                     q1[s, a] = td_update(q1[s, a], alpha, target)
@@ -334,7 +240,7 @@ def one_step_control_kernel(
                 qb[s, a] = q1[s, a] + q2[s, a]
             if terminated or truncated or t >= max_steps:
                 break
-            if rule != 0:
+            if rule != SARSA:
                 a2 = epsilon_greedy_action(qb[s2], mask[s2], epsilon, rng)
             s, a = s2, a2
         returns[k] = g
@@ -499,7 +405,7 @@ def lambda_kernel(
                 else:
                     w_next = w[s2, 0]
             delta = td_error(r, gamma, w_next, w[s, c], terminated)
-            if trace == 1:
+            if trace == TRACE_REPLACING:
                 e[s, c] = 1.0
             else:
                 e[s, c] += 1.0

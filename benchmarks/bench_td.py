@@ -80,40 +80,31 @@ def kernel_steps(
 
     def run() -> int:
         q1 = np.zeros((S, A))
-        counts = np.zeros((S, A), dtype=np.int64)
-        returns = np.zeros(episodes)
-        lengths = np.zeros(episodes, dtype=np.int64)
-        first = np.zeros(episodes, dtype=np.int64)
+        tables = tdk.Tables(
+            q1,
+            q1,
+            q1,
+            np.zeros((S, A), dtype=np.int64),
+            np.zeros((S, A)),
+            np.zeros((0, 0), dtype=np.int64),
+            np.zeros((0, 0)),
+            np.zeros(1, dtype=np.int64),
+        )
+        out = tdk.Episodes(
+            np.zeros(episodes),
+            np.zeros(episodes, dtype=np.int64),
+            np.zeros(episodes, dtype=np.int64),
+        )
+        settings = tdk.Settings(0.99, alpha, eps, 100_000, rule, 1, 0.0, 0, 0, True)
         rng = rng_states(0, 1)[0]
         if python:
             env: Any = GymStepper(pl.MDPEnv(mdp), StateIndex.discrete(S), 0)
-            model = tdk.model_tuple(None)
+            model = tdk.model_tuple(None, km.mask)
             fn = tdk.one_step_control_kernel.py_func
         else:
             env, model = None, tdk.model_tuple(km)
             fn = tdk.one_step_control_kernel
-        return int(
-            fn(
-                env,
-                model,
-                km.mask,
-                q1,
-                q1,
-                q1,
-                rule,
-                0,
-                episodes,
-                0.99,
-                alpha,
-                eps,
-                100_000,
-                rng,
-                counts,
-                returns,
-                lengths,
-                first,
-            )
-        )
+        return int(fn(env, model, tables, settings, out, rng, 0, episodes))
 
     return run
 

@@ -25,9 +25,11 @@ Example::
 
 from __future__ import annotations
 
+import contextlib
+import inspect
 import time
-from collections.abc import Hashable
-from dataclasses import dataclass, field
+from collections.abc import Hashable, Iterator, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -47,14 +49,13 @@ from policylab.tabular.common import (
     env_name,
     is_finite_mdp,
     progress_bar,
-    run_seeds,
 )
-from policylab.tabular.kernels import KernelMDP, rng_states
+from policylab.tabular.kernels import KernelMDP, rng_states, writable
 from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule
 from policylab.tabular.truth import GroundTruth, greedy_probs
-from policylab.validation import as_generator, did_you_mean, normalize_name
+from policylab.validation import as_generator, check_seed, did_you_mean, normalize_name
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -112,7 +113,7 @@ def _resolve(problem: Any, model: FiniteMDP | None) -> _Problem:
             None,
             fm.n_states,
             fm.n_actions,
-            np.ascontiguousarray(fm.action_mask, dtype=np.bool_),
+            writable(fm.action_mask, np.bool_),
             fm.states,
             fm.actions,
             np.asarray(fm.terminal, dtype=bool),
@@ -156,7 +157,7 @@ def _resolve(problem: Any, model: FiniteMDP | None) -> _Problem:
             index,
             S,
             A,
-            np.ascontiguousarray(mdp.action_mask, dtype=np.bool_),
+            writable(mdp.action_mask, np.bool_),
             mdp.states,
             mdp.actions,
             np.asarray(mdp.terminal, dtype=bool),
@@ -185,14 +186,14 @@ def _policy_table(
     if policy is None:
         if P.mdp is not None:
             pol = Policy.uniform(P.mdp)
-            return np.ascontiguousarray(pol.probs), pol
+            return writable(pol.probs, np.float64), pol
         return np.full((P.n_states, P.n_actions), 1.0 / P.n_actions), None
     if isinstance(policy, Policy):
         if P.mdp is not None and (policy.states != P.mdp.states or policy.actions != P.mdp.actions):
             raise InvalidPolicyError(
                 f"the policy's states/actions do not match the problem {P.name!r}"
             )
-        return np.ascontiguousarray(policy.probs, dtype=np.float64), policy
+        return writable(policy.probs, np.float64), policy
     try:
         table = np.asarray(policy, dtype=np.float64)
     except (TypeError, ValueError):
@@ -202,7 +203,7 @@ def _policy_table(
         ) from None
     if P.mdp is not None:
         pol = Policy.from_array(P.mdp, table)
-        return np.ascontiguousarray(pol.probs), pol
+        return writable(pol.probs, np.float64), pol
     if (
         table.shape != (P.n_states, P.n_actions)
         or np.any(table < 0)
@@ -212,10 +213,19 @@ def _policy_table(
             f"policy must be an ({P.n_states}, {P.n_actions}) array whose rows sum to 1; "
             f"got shape {table.shape}"
         )
-    return np.ascontiguousarray(table), None
+    return writable(table, np.float64), None
 
 
 # =============================================================================== one run
+_FAMILIES = {
+    "td0": tdk.TD0,
+    "one_step": tdk.ONE_STEP,
+    "n_step": tdk.N_STEP,
+    "lambda": tdk.LAMBDA,
+    "dyna": tdk.DYNA,
+}
+
+
 @dataclass(frozen=True)
 class _Algo:
     """Which kernel a learner runs, with its fixed settings."""
@@ -223,11 +233,68 @@ class _Algo:
     name: str
     family: Literal["td0", "one_step", "n_step", "lambda", "dyna"]
     control: bool
-    rule: int = 0
+    rule: int = tdk.SARSA
     n: int = 1
     lam: float = 0.0
     trace: int = tdk.TRACE_ACCUMULATING
     planning: int = 0
+
+    def settings(
+        self, gamma: float, alpha: Schedule, epsilon: Schedule, max_steps: int
+    ) -> tdk.Settings:
+        """The kernel's :class:`~policylab.tabular.td_kernels.Settings` of one run."""
+        return tdk.Settings(
+            float(gamma),
+            alpha.params,
+            epsilon.params,
+            int(max_steps),
+            self.rule,
+            self.n,
+            float(self.lam),
+            self.trace,
+            self.planning,
+            self.control,
+        )
+
+
+def _tables(
+    algo: _Algo, P: _Problem, pi: NDArray[np.float64], init: float, n_runs: int | None = None
+) -> tdk.Tables:
+    """Fresh tables of one run (``n_runs`` None) or of ``n_runs`` runs (leading run axis).
+
+    The table learned starts at ``init`` (0 on terminal states); for anything but Double
+    Q-learning ``q2`` and ``qb`` are the learned table itself.
+    """
+    S, A = P.n_states, P.n_actions
+    lead = () if n_runs is None else (n_runs,)
+    cols = A if algo.control else 1
+    w = np.full((*lead, S, cols), float(init))
+    w[..., P.terminal, :] = 0.0
+    q2 = qb = w
+    if algo.rule == tdk.DOUBLE_Q:
+        q2 = w.copy()
+        qb = w + q2  # the behaviour's Q1 + Q2, kept up to date by the kernel
+    dyna = algo.family == "dyna"
+    return tdk.Tables(
+        w,
+        q2,
+        qb,
+        np.zeros((*lead, S, cols), dtype=np.int64),
+        pi,
+        np.full((*lead, S, A) if dyna else (*lead, 0, 0), -1, dtype=np.int64),
+        np.zeros((*lead, S, A) if dyna else (*lead, 0, 0)),
+        np.zeros((*lead, S * A + 1 if dyna else 1), dtype=np.int64),
+    )
+
+
+def _episodes(episodes: int, n_runs: int | None = None) -> tdk.Episodes:
+    """Empty per-episode records of one run (or of ``n_runs`` runs)."""
+    lead = () if n_runs is None else (n_runs,)
+    return tdk.Episodes(
+        np.zeros((*lead, episodes)),
+        np.zeros((*lead, episodes), dtype=np.int64),
+        np.full((*lead, episodes), -1, dtype=np.int64),
+    )
 
 
 @dataclass
@@ -236,25 +303,14 @@ class _Run:
 
     algo: _Algo
     P: _Problem
-    pi: NDArray[np.float64]
     gamma: float
-    alpha: Schedule
-    epsilon: Schedule
     max_steps: int
     rng: NDArray[np.uint64]
     env: Any
-    model: tuple[Any, ...]
-    w: NDArray[np.float64]
-    episodes: int
-    q2: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
-    qb: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
-    counts: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    returns: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    lengths: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    first_actions: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    model_next: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 0), dtype=np.int64))
-    model_reward: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
-    seen: NDArray[np.int64] = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
+    model: tdk.Model
+    settings: tdk.Settings
+    tables: tdk.Tables
+    out: tdk.Episodes
 
     @classmethod
     def start(
@@ -272,150 +328,44 @@ class _Run:
         episodes: int,
         init: float,
     ) -> _Run:
-        S, A = P.n_states, P.n_actions
-        cols = A if algo.control else 1
-        w = np.full((S, cols), float(init))
-        w[P.terminal] = 0.0
         if P.env is None:  # compiled path: the kernel samples the model's arrays
             assert P.mdp is not None  # the compiled path always has a model
             env: Any = None
-            model = tdk.model_tuple(KernelMDP.of(P.mdp, gamma))
+            model = tdk.model_tuple(KernelMDP.of(P.mdp, gamma), P.mask)
         else:  # general path: the kernel steps the Gymnasium env
             assert P.index is not None  # the general path always has an index
             env = GymStepper(P.env, P.index, env_seed)
-            model = tdk.model_tuple(None)
-        run = cls(algo, P, pi, gamma, alpha, epsilon, max_steps, rng, env, model, w, episodes)
-        run.counts = np.zeros((S, cols), dtype=np.int64)
-        run.returns = np.zeros(episodes)
-        run.lengths = np.zeros(episodes, dtype=np.int64)
-        run.first_actions = np.full(episodes, -1, dtype=np.int64)
-        if algo.rule == tdk.DOUBLE_Q:
-            run.q2 = w.copy()
-            run.qb = run.w + run.q2  # the behaviour's Q1 + Q2, kept up to date by the kernel
-        if algo.family == "dyna":
-            run.model_next = np.full((S, A), -1, dtype=np.int64)
-            run.model_reward = np.zeros((S, A))
-            run.seen = np.zeros(S * A + 1, dtype=np.int64)
-        return run
+            model = tdk.model_tuple(None, P.mask)
+        return cls(
+            algo,
+            P,
+            gamma,
+            max_steps,
+            rng,
+            env,
+            model,
+            algo.settings(gamma, alpha, epsilon, max_steps),
+            _tables(algo, P, pi, init),
+            _episodes(episodes),
+        )
 
     def __call__(self, k0: int, k1: int) -> int:
         """Run episodes k0 .. k1 - 1; return the environment steps taken."""
-        a, P = self.algo, self.P
-        compiled = P.env is None
+        family = _FAMILIES[self.algo.family]
+        args = (self.env, self.model, self.tables, self.settings, self.out, self.rng, k0, k1)
+        if self.env is None:
+            return int(tdk.run_kernel(family, *args))
+        return int(tdk.KERNELS[family].py_func(*args))  # the same source, as Python
 
-        def kernel(fn: Any) -> Any:
-            return fn if compiled else fn.py_func
+    @property
+    def w(self) -> NDArray[np.float64]:
+        """The table learned (V as (S, 1), or Q; Q1 for Double Q)."""
+        return self.tables.w  # type: ignore[no-any-return]
 
-        ap, ep = self.alpha.params, self.epsilon.params
-        if a.family == "td0":
-            return int(
-                kernel(tdk.td0_kernel)(
-                    self.env,
-                    self.model,
-                    self.pi,
-                    self.w[:, 0],
-                    k0,
-                    k1,
-                    self.gamma,
-                    ap,
-                    self.max_steps,
-                    self.rng,
-                    self.counts[:, 0],
-                    self.returns,
-                    self.lengths,
-                )
-            )
-        if a.family == "one_step":
-            double = a.rule == tdk.DOUBLE_Q
-            return int(
-                kernel(tdk.one_step_control_kernel)(
-                    self.env,
-                    self.model,
-                    P.mask,
-                    self.w,
-                    self.q2 if double else self.w,
-                    self.qb if double else self.w,
-                    a.rule,
-                    k0,
-                    k1,
-                    self.gamma,
-                    ap,
-                    ep,
-                    self.max_steps,
-                    self.rng,
-                    self.counts,
-                    self.returns,
-                    self.lengths,
-                    self.first_actions,
-                )
-            )
-        if a.family == "n_step":
-            return int(
-                kernel(tdk.n_step_kernel)(
-                    self.env,
-                    self.model,
-                    P.mask,
-                    self.pi,
-                    self.w,
-                    a.control,
-                    a.n,
-                    k0,
-                    k1,
-                    self.gamma,
-                    ap,
-                    ep,
-                    self.max_steps,
-                    self.rng,
-                    self.counts,
-                    self.returns,
-                    self.lengths,
-                )
-            )
-        if a.family == "lambda":
-            return int(
-                kernel(tdk.lambda_kernel)(
-                    self.env,
-                    self.model,
-                    P.mask,
-                    self.pi,
-                    self.w,
-                    a.control,
-                    a.lam,
-                    a.trace,
-                    k0,
-                    k1,
-                    self.gamma,
-                    ap,
-                    ep,
-                    self.max_steps,
-                    self.rng,
-                    self.counts,
-                    self.returns,
-                    self.lengths,
-                )
-            )
-        return int(
-            kernel(tdk.dyna_q_kernel)(
-                self.env,
-                self.model,
-                P.mask,
-                self.w,
-                a.planning,
-                k0,
-                k1,
-                self.gamma,
-                ap,
-                ep,
-                self.max_steps,
-                self.rng,
-                self.counts,
-                self.returns,
-                self.lengths,
-                self.model_next,
-                self.model_reward,
-                self.seen,
-            )
-        )
+    @property
+    def q2(self) -> NDArray[np.float64]:
+        """Q2 of Double Q-learning (else the learned table itself)."""
+        return self.tables.q2  # type: ignore[no-any-return]
 
     @property
     def q(self) -> NDArray[np.float64]:
@@ -538,7 +488,8 @@ def _learn(
             advance(k1 - k0)
     seconds = time.perf_counter() - t0
     _warn_if_diverged(algo, run, a)
-    counts = run.counts if algo.control else np.repeat(run.counts, P.n_actions, axis=1) * P.mask
+    counts = run.tables.counts
+    counts = counts if algo.control else np.repeat(counts, P.n_actions, axis=1) * P.mask
     pol = greedy_probs(run.q, P.mask) if algo.control else pi.copy()
     return LearnResult(
         algorithm=algo.name,
@@ -554,10 +505,10 @@ def _learn(
         episodes=episodes,
         steps=int(steps),
         seconds=seconds,
-        episode_returns=run.returns,
-        truncated=int(np.sum(run.lengths >= max_steps)),
-        episode_lengths=run.lengths,
-        first_actions=run.first_actions if algo.family == "one_step" else None,
+        episode_returns=run.out.returns,
+        truncated=int(np.sum(run.out.lengths >= max_steps)),
+        episode_lengths=run.out.lengths,
+        first_actions=run.out.first_actions if algo.family == "one_step" else None,
         params={
             **(params or {}),
             "alpha": str(a),
@@ -638,7 +589,7 @@ class SeedRuns:
 def seed_study(
     algorithm: str,
     problem: FiniteMDP | Any,
-    seeds: int = 100,
+    seeds: int | Sequence[int] = 100,
     *,
     seed: Seed = 0,
     episodes: int = 500,
@@ -646,23 +597,27 @@ def seed_study(
     workers: int | None = None,
     **options: Any,
 ) -> SeedRuns:
-    """Run a TD learner ``seeds`` times independently (the many-seed studies of the book).
+    """Run a tabular learner for many seeds independently, in one compiled call.
 
-    A thin layer over :func:`~policylab.tabular.run_seeds`: the seeds of the runs are
-    drawn from ``seed`` (``numpy.random.default_rng(seed).integers(2**63 - 1, size=seeds)``),
-    so run r is exactly ``learner(problem, seed=seeds_r, episodes=episodes, **options)``
-    alone, and the per-run results are stacked into the arrays the book's figures
-    average: every episode's return, length and first action for every run.
+    Run r is exactly ``learner(problem, seed=seeds[r], episodes=episodes, **options)``
+    alone (same returns, lengths, tables, bit for bit). ``seeds`` is either the list of
+    seeds, or a number R of runs whose seeds are drawn from ``seed``
+    (``numpy.random.default_rng(seed).integers(2**63 - 1, size=R)``). On a FiniteMDP
+    all runs go in one call of a compiled loop parallel over runs (numba ``prange``:
+    each run has its own tables and its own RNG stream, so the numbers do not depend on
+    the number of threads, see ``numba.set_num_threads``); on a Gymnasium env the runs
+    go one after the other. The per-run results are stacked into the arrays the book's
+    figures average: every episode's return, length and first action of every run.
 
     Args:
         algorithm: A TD algorithm's registry name (``"sarsa"``, ``"q-learning"``, ...).
-        problem: A FiniteMDP (several runs at once, see :func:`run_seeds`) or a Gymnasium
-            env with discrete observations (runs one after the other).
-        seeds: Number of independent runs.
-        seed: Seed of the whole study.
+        problem: A FiniteMDP (one parallel compiled call) or a Gymnasium env with
+            discrete observations (runs one after the other).
+        seeds: The seeds of the runs, or their number.
+        seed: Seed from which the runs' seeds are drawn when ``seeds`` is a number.
         episodes: Episodes per run.
         policy: The policy evaluated (prediction methods).
-        workers: Threads for :func:`run_seeds` (default: the number of CPUs).
+        workers: Most threads to run on (default: numba's, the number of CPUs).
         **options: The learner's own keyword arguments (``alpha``, ``epsilon``, ``n``,
             ``lam``, ``trace``, ``planning_steps``, ``gamma``, ``max_steps``, ``init``, ...).
 
@@ -682,33 +637,155 @@ def seed_study(
     control = "epsilon" in allowed
     if control and policy is not None:
         raise InvalidArgumentError(f"{name} is a control method; it takes no policy")
-    n_runs = check_episodes(seeds, "seeds")
-    seed_list = [int(x) for x in as_generator(seed).integers(2**63 - 1, size=n_runs)]
-    kwargs = dict(options, episodes=episodes, checkpoints=1)
-    if not control:
-        kwargs["policy"] = policy
+    seed_list = _seed_list(seeds, seed)
     t0 = time.perf_counter()
-    if is_finite_mdp(problem):
-        results = run_seeds(learner, problem, seed_list, workers=workers, **kwargs)
-    else:  # an env cannot be shared between threads
+    if not is_finite_mdp(problem):  # an env is stepped by one run at a time
+        kwargs = dict(options, episodes=episodes, checkpoints=1)
+        if not control:
+            kwargs["policy"] = policy
         results = [learner(problem, seed=s, **kwargs) for s in seed_list]
+        first = [r.first_actions for r in results]
+        return SeedRuns(
+            name,
+            results[0].problem,
+            len(seed_list),
+            np.stack([r.episode_returns for r in results]),
+            np.stack([r.episode_lengths for r in results]),
+            np.stack([r.q for r in results]),
+            np.stack([r.v for r in results]),
+            None if any(f is None for f in first) else np.stack(first),
+            sum(r.steps for r in results),
+            time.perf_counter() - t0,
+        )
+    defaults = {
+        p.name: p.default
+        for p in inspect.signature(learner).parameters.values()
+        if p.kind is inspect.Parameter.KEYWORD_ONLY
+    }
+    kw = {**defaults, **options}
+    algo, _ = _make_algo(name, {k: kw[k] for k in allowed - _CONTROL})
+    P, pi, _, g, a, e, episodes, max_steps = _prepare(
+        algo,
+        problem,
+        policy,
+        model=kw["model"],
+        episodes=episodes,
+        gamma=kw["gamma"],
+        alpha=kw["alpha"],
+        epsilon=kw.get("epsilon"),
+        max_steps=kw["max_steps"],
+    )
+    assert P.mdp is not None  # a FiniteMDP problem
+    R = len(seed_list)
+    rngs = np.stack([rng_states(as_generator(s), 1)[0] for s in seed_list])
+    tables = _tables(algo, P, pi, kw["init"], n_runs=R)
+    out = _episodes(episodes, R)
+    model = tdk.model_tuple(KernelMDP.of(P.mdp, g), P.mask)
+    settings = algo.settings(g, a, e, max_steps)
+    with _threads(workers):
+        steps = tdk.many_runs(_FAMILIES[algo.family], model, tables, settings, out, rngs, episodes)
     seconds = time.perf_counter() - t0
-    first = [r.first_actions for r in results]
+    runs = [
+        _Run(
+            algo,
+            P,
+            g,
+            max_steps,
+            rngs[r],
+            None,
+            model,
+            settings,
+            tdk.Tables(*(t if t is pi else t[r] for t in tables)),
+            tdk.Episodes(*(o[r] for o in out)),
+        )
+        for r in range(R)
+    ]
+    for run in runs:
+        _warn_if_diverged(algo, run, a)
     return SeedRuns(
         name,
-        results[0].problem,
-        n_runs,
-        np.stack([r.episode_returns for r in results]),
-        np.stack([r.episode_lengths for r in results]),
-        np.stack([r.q for r in results]),
-        np.stack([r.v for r in results]),
-        None if any(f is None for f in first) else np.stack(first),
-        sum(r.steps for r in results),
+        P.name,
+        R,
+        out.returns,
+        out.lengths,
+        np.stack([run.q for run in runs]),
+        np.stack([run.v for run in runs]),
+        out.first_actions if algo.family == "one_step" else None,
+        int(steps.sum()),
         seconds,
     )
 
 
+def _seed_list(seeds: int | Sequence[int], seed: Seed) -> list[int]:
+    """The runs' seeds: the list given (each checked), or R seeds drawn from ``seed``."""
+    if isinstance(seeds, int | np.integer) and not isinstance(seeds, bool):
+        n_runs = check_episodes(seeds, "seeds")
+        return [int(x) for x in as_generator(seed).integers(2**63 - 1, size=n_runs)]
+    if isinstance(seeds, str) or not isinstance(seeds, Sequence | np.ndarray):
+        raise InvalidArgumentError(
+            f"seeds must be a number of runs or a sequence of integer seeds; got {seeds!r}"
+        )
+    out = [check_seed(s, f"seeds[{i}]") for i, s in enumerate(seeds)]
+    if not out:
+        raise InvalidArgumentError("seeds must not be empty")
+    if any(s is None for s in out):
+        raise InvalidArgumentError("seeds must be integers (None has no fixed stream)")
+    return [int(s) for s in out if s is not None]
+
+
+@contextlib.contextmanager
+def _threads(workers: int | None) -> Iterator[None]:
+    """Numba's thread count limited to ``workers`` (if given) for the ``with`` block."""
+    if workers is None:
+        yield
+        return
+    import numba
+
+    n = check_count(workers, "workers")
+    before = numba.get_num_threads()
+    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
 # =============================================================================== learners
+#: name -> (family, control, one-step rule) of every TD learner.
+_TD_KINDS: dict[str, tuple[Any, bool, int]] = {
+    "td0": ("td0", False, tdk.SARSA),
+    "n-step-td": ("n_step", False, tdk.SARSA),
+    "td-lambda": ("lambda", False, tdk.SARSA),
+    "sarsa": ("one_step", True, tdk.SARSA),
+    "q-learning": ("one_step", True, tdk.Q_LEARNING),
+    "expected-sarsa": ("one_step", True, tdk.EXPECTED_SARSA),
+    "double-q-learning": ("one_step", True, tdk.DOUBLE_Q),
+    "n-step-sarsa": ("n_step", True, tdk.SARSA),
+    "sarsa-lambda": ("lambda", True, tdk.SARSA),
+    "dyna-q": ("dyna", True, tdk.SARSA),
+}
+
+
+def _make_algo(name: str, own: dict[str, Any]) -> tuple[_Algo, dict[str, Any]]:
+    """The kernel settings of a TD learner from its own options, checked, and their record."""
+    family, control, rule = _TD_KINDS[name]
+    fields: dict[str, Any] = {}
+    params: dict[str, Any] = {}
+    if "n" in own:
+        fields["n"] = _check_n(own["n"])
+        params["n"] = fields["n"]
+    if "lam" in own:
+        fields["lam"] = _check_lambda(own["lam"])
+        params["lambda"] = fields["lam"]
+    if "trace" in own:
+        fields["trace"] = _check_trace(own["trace"])
+        params["trace"] = own["trace"]
+    if "planning_steps" in own:
+        fields["planning"] = _check_planning(own["planning_steps"])
+        params["planning_steps"] = fields["planning"]
+    return _Algo(name, family, control, rule=rule, **fields), params
+
+
 def _check_n(n: Any) -> int:
     return check_count(n, "n (the number of steps)")
 
@@ -767,7 +844,7 @@ def td0(
         through the model (zeros without one) and ``policy`` is the policy evaluated.
     """
     return _learn(
-        _Algo("td0", "td0", False),
+        _make_algo("td0", {})[0],
         problem,
         policy,
         episodes=episodes,
@@ -805,7 +882,7 @@ def n_step_td(
     Arguments as :func:`td0`, plus ``n``.
     """
     return _learn(
-        _Algo("n-step-td", "n_step", False, n=_check_n(n)),
+        _make_algo("n-step-td", {"n": n})[0],
         problem,
         policy,
         episodes=episodes,
@@ -845,7 +922,7 @@ def td_lambda(
     Arguments as :func:`td0`, plus ``lam`` and ``trace``.
     """
     return _learn(
-        _Algo("td-lambda", "lambda", False, lam=_check_lambda(lam), trace=_check_trace(trace)),
+        _make_algo("td-lambda", {"lam": lam, "trace": trace})[0],
         problem,
         policy,
         episodes=episodes,
@@ -937,7 +1014,7 @@ def sarsa(
     epsilon-greedy action actually taken next.
     """
     return _control(
-        _Algo("sarsa", "one_step", True, rule=tdk.SARSA),
+        _make_algo("sarsa", {})[0],
         problem,
         episodes=episodes,
         alpha=alpha,
@@ -971,7 +1048,7 @@ def q_learning(
     Q(S, A) <- Q(S, A) + alpha [R + gamma max_a Q(S', a) - Q(S, A)].
     """
     return _control(
-        _Algo("q-learning", "one_step", True, rule=tdk.Q_LEARNING),
+        _make_algo("q-learning", {})[0],
         problem,
         episodes=episodes,
         alpha=alpha,
@@ -1006,7 +1083,7 @@ def expected_sarsa(
     epsilon-greedy policy of Q.
     """
     return _control(
-        _Algo("expected-sarsa", "one_step", True, rule=tdk.EXPECTED_SARSA),
+        _make_algo("expected-sarsa", {})[0],
         problem,
         episodes=episodes,
         alpha=alpha,
@@ -1042,7 +1119,7 @@ def double_q_learning(
     Q1 + Q2. ``result.q`` is (Q1 + Q2) / 2.
     """
     return _control(
-        _Algo("double-q-learning", "one_step", True, rule=tdk.DOUBLE_Q),
+        _make_algo("double-q-learning", {})[0],
         problem,
         episodes=episodes,
         alpha=alpha,
@@ -1078,7 +1155,7 @@ def n_step_sarsa(
     ... + gamma^{n-1} R_{tau+n} + gamma^n Q(S_{tau+n}, A_{tau+n}). n = 1 is Sarsa.
     """
     return _control(
-        _Algo("n-step-sarsa", "n_step", True, n=_check_n(n)),
+        _make_algo("n-step-sarsa", {"n": n})[0],
         problem,
         episodes=episodes,
         alpha=alpha,
@@ -1116,7 +1193,7 @@ def sarsa_lambda(
     (replacing); Q <- Q + alpha delta e; e <- gamma lambda e. lambda = 0 is Sarsa.
     """
     return _control(
-        _Algo("sarsa-lambda", "lambda", True, lam=_check_lambda(lam), trace=_check_trace(trace)),
+        _make_algo("sarsa-lambda", {"lam": lam, "trace": trace})[0],
         problem,
         episodes=episodes,
         alpha=alpha,
@@ -1155,7 +1232,7 @@ def dyna_q(
     Q-learning.
     """
     return _control(
-        _Algo("dyna-q", "dyna", True, planning=_check_planning(planning_steps)),
+        _make_algo("dyna-q", {"planning_steps": planning_steps})[0],
         problem,
         episodes=episodes,
         alpha=alpha,

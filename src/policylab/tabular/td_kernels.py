@@ -31,10 +31,10 @@ average), exploration rates at n = the episode number.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from policylab.tabular.kernels import (
     env_reset,
@@ -85,49 +85,124 @@ SARSA, Q_LEARNING, EXPECTED_SARSA, DOUBLE_Q = 0, 1, 2, 3
 TRACE_ACCUMULATING, TRACE_REPLACING = 0, 1
 
 
-# ---------------------------------------------------------------------------- environment
-def model_tuple(km: Any | None) -> tuple[Any, ...]:
-    """The model arrays a kernel samples, from a :class:`~policylab.tabular.kernels.KernelMDP`.
+# ---------------------------------------------------------------------------- arguments
+class Model(NamedTuple):
+    """The arrays of a FiniteMDP that a kernel samples (a ``KernelMDP``, as a tuple).
 
-    ``(indptr, next_states, probs, rewards, terminal, initial)``; with None (the
-    general path, which steps a Gymnasium env instead) empty arrays of the same types.
+    On the general path (a Gymnasium env steps instead) the arrays are empty, of the same
+    types, except ``mask``, which is A(s) on both paths.
+    """
+
+    indptr: Any
+    next_states: Any
+    probs: Any
+    rewards: Any
+    terminal: Any
+    initial: Any
+    mask: Any
+
+
+class Settings(NamedTuple):
+    """The fixed settings of one run: discount, schedules, step limit, the algorithm's own.
+
+    ``alpha`` and ``epsilon`` are :attr:`~policylab.tabular.Schedule.params` arrays;
+    ``rule`` one of :data:`SARSA`, :data:`Q_LEARNING`, :data:`EXPECTED_SARSA`,
+    :data:`DOUBLE_Q` (one-step control); ``n`` the steps of an n-step return; ``lam``
+    and ``trace`` (:data:`TRACE_ACCUMULATING`, :data:`TRACE_REPLACING`) of a lambda
+    method; ``planning`` the Dyna-Q planning updates per step; ``control`` whether the
+    table is Q (S, A) rather than V (S, 1).
+    """
+
+    gamma: float
+    alpha: Any
+    epsilon: Any
+    max_steps: int
+    rule: int
+    n: int
+    lam: float
+    trace: int
+    planning: int
+    control: bool
+
+
+class Tables(NamedTuple):
+    """What one run learns and keeps between calls, updated in place.
+
+    ``w``: V (S, 1) or Q (S, A) (Q1 for Double Q); ``q2``: Q2 of Double Q; ``qb``: the
+    table the behaviour is epsilon-greedy in (``w`` itself, or Q1 + Q2 kept up to date);
+    ``counts``: updates of each entry (the step size's n); ``pi``: the (S, A) policy
+    evaluated (prediction); ``model_next``, ``model_reward``, ``seen``: Dyna-Q's learned
+    model. Tables a family does not use are empty.
+    """
+
+    w: Any
+    q2: Any
+    qb: Any
+    counts: Any
+    pi: Any
+    model_next: Any
+    model_reward: Any
+    seen: Any
+
+
+class Episodes(NamedTuple):
+    """Per-episode records a kernel writes: return G_0, length and first action A_0."""
+
+    returns: Any
+    lengths: Any
+    first_actions: Any
+
+
+def model_tuple(km: Any | None, mask: Any = None) -> Model:
+    """The :class:`Model` of a :class:`~policylab.tabular.kernels.KernelMDP`.
+
+    With None (the general path, which steps a Gymnasium env instead) empty arrays of
+    the same types, and ``mask`` (default: an empty (0, 0) mask) as A(s).
     """
     if km is None:
-        return (
+        return Model(
             np.zeros(1, dtype=np.int64),
             np.zeros(0, dtype=np.int32),
             np.zeros(0),
             np.zeros(0),
             np.zeros(1, dtype=np.bool_),
             np.zeros(1),
+            np.zeros((0, 0), dtype=np.bool_) if mask is None else mask,
         )
-    return (km.indptr, km.next_states, km.probs, km.rewards, km.terminal, km.initial)
+    return Model(
+        km.indptr,
+        km.next_states,
+        km.probs,
+        km.rewards,
+        km.terminal,
+        km.initial,
+        km.mask if mask is None else mask,
+    )
 
 
 # ---------------------------------------------------------------------------- TD(0)
 @njit(cache=True, nogil=True)
 def td0_kernel(
     env: Any,
-    model: Any,
-    pi: Any,
-    v: Any,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
     k0: int,
     k1: int,
-    gamma: float,
-    alpha_params: Any,
-    max_steps: int,
-    rng: Any,
-    counts: Any,
-    returns: Any,
-    lengths: Any,
 ) -> int:
     """Tabular TD(0) prediction of v_pi (S&B section 6.1), in place on ``v``.
 
     Each step: A ~ pi(. | S); take A, observe R, S'; V(S) <- V(S) + alpha [R + gamma
     V(S') - V(S)]; S <- S'.
     """
-    indptr, next_states, probs, rewards, terminal, initial = model
-    n_actions = pi.shape[1]
+    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    returns, lengths = out.returns, out.lengths
+    gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
+    pi, counts = tables.pi, tables.counts[:, 0]
+    v = tables.w[:, 0]
+    n_actions = mask.shape[1]
     steps = 0
     for k in range(k0, k1):
         s = env_reset(env, initial, rng)
@@ -156,23 +231,13 @@ def td0_kernel(
 @njit(cache=True, nogil=True)
 def one_step_control_kernel(
     env: Any,
-    model: Any,
-    mask: Any,
-    q1: Any,
-    q2: Any,
-    qb: Any,
-    rule: int,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
     k0: int,
     k1: int,
-    gamma: float,
-    alpha_params: Any,
-    epsilon_params: Any,
-    max_steps: int,
-    rng: Any,
-    counts: Any,
-    returns: Any,
-    lengths: Any,
-    first_actions: Any,
 ) -> int:
     """Sarsa, Q-learning, Expected Sarsa or Double Q-learning (S&B 6.4-6.7), in place.
 
@@ -192,7 +257,11 @@ def one_step_control_kernel(
     (numba prunes the ``env is None`` branch): the call, with its six array arguments,
     cost this hottest loop a third of its speed.
     """
-    indptr, next_states, probs, rewards, terminal, initial = model
+    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    returns, lengths = out.returns, out.lengths
+    gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
+    epsilon_params, rule, first_actions = settings.epsilon, settings.rule, out.first_actions
+    q1, q2, qb, counts = tables.w, tables.q2, tables.qb, tables.counts
     n_actions = mask.shape[1]
     steps = 0
     for k in range(k0, k1):
@@ -253,22 +322,13 @@ def one_step_control_kernel(
 @njit(cache=True, nogil=True)
 def n_step_kernel(
     env: Any,
-    model: Any,
-    mask: Any,
-    pi: Any,
-    w: Any,
-    control: bool,
-    n: int,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
     k0: int,
     k1: int,
-    gamma: float,
-    alpha_params: Any,
-    epsilon_params: Any,
-    max_steps: int,
-    rng: Any,
-    counts: Any,
-    returns: Any,
-    lengths: Any,
 ) -> int:
     """n-step TD prediction (``control=False``) or n-step Sarsa (S&B 7.1, 7.2), in place.
 
@@ -281,7 +341,11 @@ def n_step_kernel(
     and W(S_tau[, A_tau]) <- W + alpha [G - W]. A truncated episode bootstraps from its
     last state. With n = 1 this is exactly TD(0) or Sarsa.
     """
-    indptr, next_states, probs, rewards, terminal, initial = model
+    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    returns, lengths = out.returns, out.lengths
+    gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
+    epsilon_params, control, n = settings.epsilon, settings.control, settings.n
+    pi, w, counts = tables.pi, tables.w, tables.counts
     n_actions = mask.shape[1]
     m = n + 1
     S_buf = np.zeros(m, dtype=np.int64)
@@ -349,23 +413,13 @@ def n_step_kernel(
 @njit(cache=True, nogil=True)
 def lambda_kernel(
     env: Any,
-    model: Any,
-    mask: Any,
-    pi: Any,
-    w: Any,
-    control: bool,
-    lam: float,
-    trace: int,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
     k0: int,
     k1: int,
-    gamma: float,
-    alpha_params: Any,
-    epsilon_params: Any,
-    max_steps: int,
-    rng: Any,
-    counts: Any,
-    returns: Any,
-    lengths: Any,
 ) -> int:
     """Tabular TD(lambda) (``control=False``) or Sarsa(lambda) (S&B 12.2, 12.7), in place.
 
@@ -375,7 +429,12 @@ def lambda_kernel(
     each episode. With lambda = 0 this is exactly TD(0) or Sarsa. The step size is read
     at the current entry's update count.
     """
-    indptr, next_states, probs, rewards, terminal, initial = model
+    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    returns, lengths = out.returns, out.lengths
+    gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
+    epsilon_params, control = settings.epsilon, settings.control
+    lam, trace = settings.lam, settings.trace
+    pi, w, counts = tables.pi, tables.w, tables.counts
     n_actions = mask.shape[1]
     e = np.zeros_like(w)
     n_rows, n_cols = w.shape
@@ -429,23 +488,13 @@ def lambda_kernel(
 @njit(cache=True, nogil=True)
 def dyna_q_kernel(
     env: Any,
-    model: Any,
-    mask: Any,
-    q: Any,
-    n_planning: int,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
     k0: int,
     k1: int,
-    gamma: float,
-    alpha_params: Any,
-    epsilon_params: Any,
-    max_steps: int,
-    rng: Any,
-    counts: Any,
-    returns: Any,
-    lengths: Any,
-    model_next: Any,
-    model_reward: Any,
-    seen: Any,
 ) -> int:
     """Tabular Dyna-Q (S&B 8.2): Q-learning plus ``n_planning`` updates from a learned model.
 
@@ -456,7 +505,12 @@ def dyna_q_kernel(
     ``seen[0]`` counts the pairs seen, ``seen[1:]`` lists them (kept across calls).
     With ``n_planning = 0`` this is exactly Q-learning.
     """
-    indptr, next_states, probs, rewards, terminal, initial = model
+    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    returns, lengths = out.returns, out.lengths
+    gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
+    epsilon_params, n_planning = settings.epsilon, settings.planning
+    q, counts = tables.w, tables.counts
+    model_next, model_reward, seen = tables.model_next, tables.model_reward, tables.seen
     n_actions = mask.shape[1]
     steps = 0
     for k in range(k0, k1):
@@ -499,4 +553,81 @@ def dyna_q_kernel(
         returns[k] = g
         lengths[k] = t
         steps += t
+    return steps
+
+
+# ---------------------------------------------------------------------------- one call, many runs
+#: Families of :func:`run_kernel`: which episode loop a learner runs.
+TD0, ONE_STEP, N_STEP, LAMBDA, DYNA = 0, 1, 2, 3, 4
+
+
+@njit(cache=True, nogil=True)
+def run_kernel(
+    family: int,
+    env: Any,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
+    k0: int,
+    k1: int,
+) -> int:
+    """Run episodes k0 .. k1 - 1 of the episode loop of ``family``; return the steps."""
+    if family == TD0:
+        return td0_kernel(env, model, tables, settings, out, rng, k0, k1)
+    if family == ONE_STEP:
+        return one_step_control_kernel(env, model, tables, settings, out, rng, k0, k1)
+    if family == N_STEP:
+        return n_step_kernel(env, model, tables, settings, out, rng, k0, k1)
+    if family == LAMBDA:
+        return lambda_kernel(env, model, tables, settings, out, rng, k0, k1)
+    return dyna_q_kernel(env, model, tables, settings, out, rng, k0, k1)
+
+
+#: The episode loop of each family (their ``py_func`` is the general path).
+KERNELS = {
+    TD0: td0_kernel,
+    ONE_STEP: one_step_control_kernel,
+    N_STEP: n_step_kernel,
+    LAMBDA: lambda_kernel,
+    DYNA: dyna_q_kernel,
+}
+
+
+@njit(cache=True, parallel=True)
+def many_runs(
+    family: int,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rngs: Any,
+    episodes: int,
+) -> Any:
+    """Run R independent runs of ``episodes`` episodes each, in parallel over runs.
+
+    ``tables`` and ``out`` hold every run's arrays with a leading run axis (R, ...),
+    except ``tables.pi``, the one policy every run evaluates; ``rngs`` (R, 4) is every
+    run's own xoshiro state. Run r touches only its own slices and its own RNG stream,
+    so its numbers are those of the run alone, whatever the number of threads (numba's
+    ``prange``; set with ``numba.set_num_threads``). Returns the steps of each run.
+    """
+    n_runs = rngs.shape[0]
+    steps = np.zeros(n_runs, dtype=np.int64)
+    for r in prange(n_runs):
+        run_tables = Tables(
+            tables.w[r],
+            tables.q2[r],
+            tables.qb[r],
+            tables.counts[r],
+            tables.pi,
+            tables.model_next[r],
+            tables.model_reward[r],
+            tables.seen[r],
+        )
+        run_out = Episodes(out.returns[r], out.lengths[r], out.first_actions[r])
+        steps[r] = run_kernel(
+            family, None, model, run_tables, settings, run_out, rngs[r], 0, episodes
+        )
     return steps

@@ -51,7 +51,7 @@ from policylab.tabular.common import (
     progress_bar,
 )
 from policylab.tabular.kernels import KernelMDP, rng_states, writable
-from policylab.tabular.registry import Option, register_algorithm
+from policylab.tabular.registry import Option, list_algorithms, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule
 from policylab.tabular.truth import GroundTruth, greedy_probs
@@ -625,24 +625,27 @@ def seed_study(
         A :class:`SeedRuns`.
     """
     name = normalize_name(algorithm)
-    if name not in _LEARNERS:
+    known = {spec.name: spec for spec in list_algorithms()}
+    if name not in known:
         raise InvalidArgumentError(
-            f"unknown TD algorithm {algorithm!r}{did_you_mean(name, _LEARNERS)}; known: "
-            f"{', '.join(sorted(_LEARNERS))}"
+            f"unknown TD algorithm {algorithm!r} (nor a Monte Carlo one)"
+            f"{did_you_mean(name, known)}; known: {', '.join(sorted(known))}"
         )
-    learner, allowed = _LEARNERS[name]
-    unknown = sorted(set(options) - allowed - _COMMON_OPTIONS)
+    learner = known[name].learner
+    signature = inspect.signature(learner).parameters
+    allowed = {k for k, p in signature.items() if p.kind in _KEYWORDS} - _SET_BY_STUDY
+    unknown = sorted(set(options) - allowed)
     if unknown:
         raise InvalidArgumentError(f"{name}: unknown options {unknown}")
-    control = "epsilon" in allowed
-    if control and policy is not None:
+    takes_policy = "policy" in signature
+    if not takes_policy and policy is not None:
         raise InvalidArgumentError(f"{name} is a control method; it takes no policy")
     seed_list = _seed_list(seeds, seed)
+    kwargs = dict(options, episodes=episodes, checkpoints=1)
+    if takes_policy:
+        kwargs["policy"] = policy
     t0 = time.perf_counter()
     if not is_finite_mdp(problem):  # an env is stepped by one run at a time
-        kwargs = dict(options, episodes=episodes, checkpoints=1)
-        if not control:
-            kwargs["policy"] = policy
         results = [learner(problem, seed=s, **kwargs) for s in seed_list]
         first = [r.first_actions for r in results]
         return SeedRuns(
@@ -657,13 +660,32 @@ def seed_study(
             sum(r.steps for r in results),
             time.perf_counter() - t0,
         )
+    rngs = np.stack([rng_states(as_generator(s), 1)[0] for s in seed_list])
+    if name not in _TD_KINDS:  # Monte Carlo: the learner's own checks, then one call
+        from policylab.tabular.mc import many_mc_runs, planned_run
+
+        plan = planned_run(learner, problem, **kwargs)
+        with _threads(workers):
+            mc, counts, q, v = many_mc_runs(plan, rngs)
+        return SeedRuns(
+            name,
+            plan.mdp.name,
+            len(seed_list),
+            mc.returns,
+            mc.lengths,
+            q,
+            v,
+            None,
+            int(counts[:, 0].sum()),
+            time.perf_counter() - t0,
+        )
     defaults = {
         p.name: p.default
         for p in inspect.signature(learner).parameters.values()
         if p.kind is inspect.Parameter.KEYWORD_ONLY
     }
     kw = {**defaults, **options}
-    algo, _ = _make_algo(name, {k: kw[k] for k in allowed - _CONTROL})
+    algo, _ = _make_algo(name, {k: kw[k] for k in _LEARNERS[name][1] - _CONTROL})
     P, pi, _, g, a, e, episodes, max_steps = _prepare(
         algo,
         problem,
@@ -677,7 +699,6 @@ def seed_study(
     )
     assert P.mdp is not None  # a FiniteMDP problem
     R = len(seed_list)
-    rngs = np.stack([rng_states(as_generator(s), 1)[0] for s in seed_list])
     tables = _tables(algo, P, pi, kw["init"], n_runs=R)
     out = _episodes(episodes, R)
     model = tdk.model_tuple(KernelMDP.of(P.mdp, g), P.mask)
@@ -1261,6 +1282,9 @@ for _fn in (
 
 
 # =============================================================================== registry
+#: A learner's keywords that :func:`seed_study` sets itself.
+_SET_BY_STUDY = {"problem", "episodes", "seed", "checkpoints", "progress", "policy"}
+_KEYWORDS = (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
 #: Options every TD learner takes (besides problem, policy, episodes, seed).
 _COMMON_OPTIONS = {"alpha", "gamma", "init", "max_steps", "model"}
 _CONTROL = {"epsilon"}

@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit, prange
 
 from policylab.tabular.kernels import (
+    Model,
     env_reset,
     env_step,
     epsilon_greedy_action,
@@ -86,22 +87,6 @@ TRACE_ACCUMULATING, TRACE_REPLACING = 0, 1
 
 
 # ---------------------------------------------------------------------------- arguments
-class Model(NamedTuple):
-    """The arrays of a FiniteMDP that a kernel samples (a ``KernelMDP``, as a tuple).
-
-    On the general path (a Gymnasium env steps instead) the arrays are empty, of the same
-    types, except ``mask``, which is A(s) on both paths.
-    """
-
-    indptr: Any
-    next_states: Any
-    probs: Any
-    rewards: Any
-    terminal: Any
-    initial: Any
-    mask: Any
-
-
 class Settings(NamedTuple):
     """The fixed settings of one run: discount, schedules, step limit, the algorithm's own.
 

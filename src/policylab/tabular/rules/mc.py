@@ -11,17 +11,22 @@
 
 from __future__ import annotations
 
+from typing import Any, NamedTuple
+
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from policylab.tabular.kernels import greedy_action
+from policylab.tabular.kernels import EpisodeBuffers, greedy_action
 from policylab.tabular.schedules import schedule_value
 
 __all__ = [
     "AVERAGE",
     "IS_CONTROL",
     "IS_PREDICTION",
+    "MCScratch",
+    "MCSettings",
+    "MCTables",
     "episode_return",
     "first_visit_flags",
     "mc_episode_update",
@@ -58,32 +63,59 @@ def first_visit_flags(
             flags[t] = False
 
 
+class MCSettings(NamedTuple):
+    """The fixed settings of a Monte Carlo run's updates.
+
+    ``kind``: :data:`AVERAGE`, :data:`IS_PREDICTION` or :data:`IS_CONTROL`; ``alpha``
+    the step-size schedule's params (1/n: sample averages); ``weighted``: weighted
+    importance sampling; ``target``: pi(a | s) flat over s * A + a (IS prediction).
+    """
+
+    gamma: float
+    kind: int
+    first_visit: bool
+    alpha: Any
+    weighted: bool
+    target: Any
+
+
+class MCTables(NamedTuple):
+    """A Monte Carlo run's tables, flat: ``q, nq, cq`` over s * A + a, ``v, nv, cv`` over s.
+
+    Values, visit counts and cumulative importance weights; ``q`` is the (S, A) Q-table
+    seen flat (a view).
+    """
+
+    q: Any
+    nq: Any
+    cq: Any
+    v: Any
+    nv: Any
+    cv: Any
+
+
+class MCScratch(NamedTuple):
+    """Scratch of :func:`mc_episode_update`.
+
+    Each step's key s * A + a, first-visit flags and the marks of
+    :func:`first_visit_flags` (kept across episodes).
+    """
+
+    keys: Any
+    flags_q: Any
+    flags_v: Any
+    mark_q: Any
+    mark_v: Any
+
+
 @nb.njit(cache=True, nogil=True)
 def mc_episode_update(
-    kind: int,
-    q: NDArray[np.float64],
-    nq: NDArray[np.float64],
-    cq: NDArray[np.float64],
-    v: NDArray[np.float64],
-    nv: NDArray[np.float64],
-    cv: NDArray[np.float64],
-    n_actions: int,
-    buf_s: NDArray[np.int64],
-    buf_a: NDArray[np.int64],
-    buf_r: NDArray[np.float64],
-    buf_b: NDArray[np.float64],
-    T: int,
-    gamma: float,
-    first_visit: bool,
-    alpha: NDArray[np.float64],
-    weighted: bool,
-    target: NDArray[np.float64],
+    settings: MCSettings,
+    tables: MCTables,
+    buf: EpisodeBuffers,
+    scratch: MCScratch,
     mask: NDArray[np.bool_],
-    keys: NDArray[np.int64],
-    flags_q: NDArray[np.bool_],
-    flags_v: NDArray[np.bool_],
-    mark_q: NDArray[np.int64],
-    mark_v: NDArray[np.int64],
+    T: int,
     stamp: int,
 ) -> None:  # pragma: no cover - compiled
     """Update the tables from one finished episode, backwards from t = T - 1 to 0.
@@ -103,6 +135,12 @@ def mc_episode_update(
 
     With ``first_visit`` only the first visit of a key in the episode is used.
     """
+    gamma, kind, first_visit = settings.gamma, settings.kind, settings.first_visit
+    alpha, weighted, target = settings.alpha, settings.weighted, settings.target
+    q, nq, cq, v, nv, cv = tables
+    buf_s, buf_a, buf_r, buf_b = buf
+    keys, flags_q, flags_v, mark_q, mark_v = scratch
+    n_actions = mask.shape[1]
     for t in range(T):
         keys[t] = buf_s[t] * n_actions + buf_a[t]
     if first_visit:

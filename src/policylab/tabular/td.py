@@ -562,8 +562,9 @@ class SeedRuns:
         problem: The problem's name.
         seeds: Number of runs R.
         returns: (R, episodes) the return G_0 of every episode of every run.
-        lengths: (R, episodes) the steps of every episode.
-        q: (R, S, A) the final Q of each run (zeros for prediction).
+        lengths: (R, episodes) the steps of every episode (0 where a learner added by
+            hand does not record them).
+        q: (R, S, A) the final Q of each run (as the learner's result gives it).
         v: (R, S) the final V of each run.
         first_actions: (R, episodes) A_0 of every episode (one-step control), else None.
         steps: Environment steps over all runs.
@@ -600,7 +601,8 @@ def seed_study(
     """Run a tabular learner for many seeds independently, in one compiled call.
 
     Run r is exactly ``learner(problem, seed=seeds[r], episodes=episodes, **options)``
-    alone (same returns, lengths, tables, bit for bit). ``seeds`` is either the list of
+    alone (same returns, lengths, tables, bit for bit), for every registered algorithm
+    (TD and Monte Carlo). ``seeds`` is either the list of
     seeds, or a number R of runs whose seeds are drawn from ``seed``
     (``numpy.random.default_rng(seed).integers(2**63 - 1, size=R)``). On a FiniteMDP
     all runs go in one call of a compiled loop parallel over runs (numba ``prange``:
@@ -610,9 +612,9 @@ def seed_study(
     figures average: every episode's return, length and first action of every run.
 
     Args:
-        algorithm: A TD algorithm's registry name (``"sarsa"``, ``"q-learning"``, ...).
-        problem: A FiniteMDP (one parallel compiled call) or a Gymnasium env with
-            discrete observations (runs one after the other).
+        algorithm: A registered algorithm's name (``"sarsa"``, ``"mc-control"``, ...).
+        problem: A FiniteMDP (one parallel compiled call for the built-in algorithms)
+            or a Gymnasium env with discrete observations (runs one after the other).
         seeds: The seeds of the runs, or their number.
         seed: Seed from which the runs' seeds are drawn when ``seeds`` is a number.
         episodes: Episodes per run.
@@ -645,7 +647,10 @@ def seed_study(
     if takes_policy:
         kwargs["policy"] = policy
     t0 = time.perf_counter()
-    if not is_finite_mdp(problem):  # an env is stepped by one run at a time
+    from policylab.tabular import mc
+
+    batched = name in _ENTRIES or learner in (mc.mc_prediction, mc.mc_control, mc.mc_off_policy)
+    if not is_finite_mdp(problem) or not batched:  # one run at a time (an env, a new learner)
         results = [learner(problem, seed=s, **kwargs) for s in seed_list]
         first = [r.first_actions for r in results]
         return SeedRuns(
@@ -653,26 +658,24 @@ def seed_study(
             results[0].problem,
             len(seed_list),
             np.stack([r.episode_returns for r in results]),
-            np.stack([r.episode_lengths for r in results]),
+            np.stack([_lengths(r) for r in results]),
             np.stack([r.q for r in results]),
-            np.stack([r.v for r in results]),
-            None if any(f is None for f in first) else np.stack(first),
+            np.stack([r.v if r.v is not None else r.q.max(axis=1) for r in results]),
+            None if any(f is None for f in first) else np.stack(first),  # type: ignore[arg-type]
             sum(r.steps for r in results),
             time.perf_counter() - t0,
         )
     rngs = np.stack([rng_states(as_generator(s), 1)[0] for s in seed_list])
-    if name not in _TD_KINDS:  # Monte Carlo: the learner's own checks, then one call
-        from policylab.tabular.mc import many_mc_runs, planned_run
-
-        plan = planned_run(learner, problem, **kwargs)
+    if name not in _ENTRIES:  # Monte Carlo: the learner's own checks, then one call
+        plan = mc.planned_run(learner, problem, **kwargs)
         with _threads(workers):
-            mc, counts, q, v = many_mc_runs(plan, rngs)
+            mc_runs, counts, q, v = mc.many_mc_runs(plan, rngs)
         return SeedRuns(
             name,
             plan.mdp.name,
             len(seed_list),
-            mc.returns,
-            mc.lengths,
+            mc_runs.returns,
+            mc_runs.lengths,
             q,
             v,
             None,
@@ -685,7 +688,7 @@ def seed_study(
         if p.kind is inspect.Parameter.KEYWORD_ONLY
     }
     kw = {**defaults, **options}
-    algo, _ = _make_algo(name, {k: kw[k] for k in _LEARNERS[name][1] - _CONTROL})
+    algo, _ = _make_algo(name, {o.param: kw[o.param] for o in _ENTRIES[name].own})
     P, pi, _, g, a, e, episodes, max_steps = _prepare(
         algo,
         problem,
@@ -737,6 +740,13 @@ def seed_study(
     )
 
 
+def _lengths(res: LearnResult) -> NDArray[np.int64]:
+    """A result's episode lengths (zeros where its learner does not record them)."""
+    if res.episode_lengths is None:
+        return np.zeros(len(res.episode_returns), dtype=np.int64)
+    return res.episode_lengths
+
+
 def _seed_list(seeds: int | Sequence[int], seed: Seed) -> list[int]:
     """The runs' seeds: the list given (each checked), or R seeds drawn from ``seed``."""
     if isinstance(seeds, int | np.integer) and not isinstance(seeds, bool):
@@ -764,7 +774,7 @@ def _threads(workers: int | None) -> Iterator[None]:
 
     n = check_count(workers, "workers")
     before = numba.get_num_threads()
-    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
+    numba.set_num_threads(min(n, int(numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
     try:
         yield
     finally:
@@ -772,24 +782,238 @@ def _threads(workers: int | None) -> Iterator[None]:
 
 
 # =============================================================================== learners
-#: name -> (family, control, one-step rule) of every TD learner.
-_TD_KINDS: dict[str, tuple[Any, bool, int]] = {
-    "td0": ("td0", False, tdk.SARSA),
-    "n-step-td": ("n_step", False, tdk.SARSA),
-    "td-lambda": ("lambda", False, tdk.SARSA),
-    "sarsa": ("one_step", True, tdk.SARSA),
-    "q-learning": ("one_step", True, tdk.Q_LEARNING),
-    "expected-sarsa": ("one_step", True, tdk.EXPECTED_SARSA),
-    "double-q-learning": ("one_step", True, tdk.DOUBLE_Q),
-    "n-step-sarsa": ("n_step", True, tdk.SARSA),
-    "sarsa-lambda": ("lambda", True, tdk.SARSA),
-    "dyna-q": ("dyna", True, tdk.SARSA),
-}
+# =============================================================================== the entries
+#: A learner's keywords that :func:`seed_study` sets itself.
+_SET_BY_STUDY = {"problem", "episodes", "seed", "checkpoints", "progress", "policy"}
+_KEYWORDS = (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+_SCHEDULE = "Schedule | float | str | None"
+
+_ALPHA = Option(
+    "--alpha",
+    "alpha",
+    "schedule",
+    "Step size alpha: a number, or a schedule of each entry's update count "
+    "(1/n, inverse:1,0.6,0.01, exp:0.5,0.999,0.01, linear:0.5,0.01,10000).",
+    annotation=_SCHEDULE,
+    value="0.1",
+    doc="Step size: a number, a :class:`Schedule` of the entry's update count, or a "
+    'schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).',
+)
+_EPSILON = Option(
+    "--epsilon",
+    "epsilon",
+    "schedule",
+    "Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of the "
+    "episode number (1/n, exp:1,0.999,0.01, linear:1,0.01,5000).",
+    annotation=_SCHEDULE,
+    value="0.1",
+    doc="Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of "
+    'the episode number (``"linear:1,0.01,5000"``).',
+)
+_INIT = Option(
+    "--init",
+    "init",
+    "float",
+    "Initial value of every non-terminal entry of the table (high values explore optimistically).",
+    annotation="float",
+    value="0.0",
+    doc="Initial value of every non-terminal entry of the table (optimistic if high; "
+    "V(s) = 0.5 in Example 6.2).",
+)
+_N = Option(
+    "--n",
+    "n",
+    "int",
+    "Number of steps n of the n-step return (n = 1 is one-step TD).",
+    annotation="int",
+    value="4",
+)
+_LAM = Option(
+    "--lambda",
+    "lam",
+    "float",
+    "Trace-decay rate lambda in [0, 1] (0 is one-step TD).",
+    annotation="float",
+    value="0.8",
+)
+_TRACE = Option(
+    "--trace",
+    "trace",
+    "str",
+    "Eligibility trace: accumulating or replacing.",
+    annotation="Trace",
+    value='"accumulating"',
+)
+_PLAN = Option(
+    "--planning-steps",
+    "planning_steps",
+    "int",
+    "Planning updates from the learned model after each real step (0 is Q-learning).",
+    annotation="int",
+    value="5",
+)
+
+
+@dataclass(frozen=True)
+class TDEntry:
+    """One TD learner: everything its public function, the registry and the CLI say.
+
+    The public function (signature and docstring) is generated from it by
+    ``python -m policylab.tabular._generate``; the ``learn`` subcommand and
+    :func:`seed_study` read the registered spec built from it.
+
+    Attributes:
+        name: Registry and command-line name (``"n-step-sarsa"``).
+        function: The public function's name (``"n_step_sarsa"``).
+        family: The episode loop (see :mod:`policylab.tabular.td_kernels`).
+        control: Learns Q (control) rather than V of a given policy (prediction).
+        title: The docstring's first line, with the book section.
+        equation: The update, as the docstring states it.
+        description: One line for ``policylab learn --help``.
+        own: The learner's own options, before the shared ones.
+        rule: The one-step rule (``one_step`` family).
+        default_episodes: Episodes when not given.
+    """
+
+    name: str
+    function: str
+    family: Literal["td0", "one_step", "n_step", "lambda", "dyna"]
+    control: bool
+    title: str
+    equation: str
+    description: str
+    own: tuple[Option, ...] = ()
+    rule: int = tdk.SARSA
+    default_episodes: int = 500
+
+    @property
+    def options(self) -> tuple[Option, ...]:
+        """The command-line options: its own, then alpha, epsilon (control) and init."""
+        return (*self.own, _ALPHA, *((_EPSILON,) if self.control else ()), _INIT)
+
+
+TD_ENTRIES: tuple[TDEntry, ...] = (
+    TDEntry(
+        "td0",
+        "td0",
+        "td0",
+        False,
+        "Tabular TD(0) prediction of v_pi (S&B section 6.1).",
+        "V(S_t) <- V(S_t) + alpha [R_{t+1} + gamma V(S_{t+1}) - V(S_t)] after every step.",
+        "TD(0) prediction of v_pi (S&B 6.1).",
+        default_episodes=100,
+    ),
+    TDEntry(
+        "n-step-td",
+        "n_step_td",
+        "n_step",
+        False,
+        "n-step TD prediction of v_pi (S&B section 7.1).",
+        "V(S_tau) <- V(S_tau) + alpha [G_{tau:tau+n} - V(S_tau)] with the n-step return\n"
+        "G_{tau:tau+n} = R_{tau+1} + gamma R_{tau+2} + ... + gamma^{n-1} R_{tau+n} +\n"
+        "gamma^n V(S_{tau+n}) (no bootstrap past the episode's end). n = 1 is TD(0).",
+        "n-step TD prediction of v_pi (S&B 7.1).",
+        (_N,),
+        default_episodes=100,
+    ),
+    TDEntry(
+        "td-lambda",
+        "td_lambda",
+        "lambda",
+        False,
+        "Tabular TD(lambda) prediction with eligibility traces (S&B section 12.2).",
+        "delta_t = R_{t+1} + gamma V(S_{t+1}) - V(S_t); e(S_t) <- e(S_t) + 1\n"
+        "(accumulating) or 1 (replacing); V <- V + alpha delta_t e; e <- gamma lambda e.\n"
+        "lambda = 0 is TD(0); lambda = 1 (accumulating, offline) approaches Monte Carlo.",
+        "TD(lambda) prediction with eligibility traces (S&B 12.2).",
+        (_LAM, _TRACE),
+        default_episodes=100,
+    ),
+    TDEntry(
+        "sarsa",
+        "sarsa",
+        "one_step",
+        True,
+        "Sarsa, on-policy TD control (S&B section 6.4).",
+        "Q(S, A) <- Q(S, A) + alpha [R + gamma Q(S', A') - Q(S, A)], with A' the\n"
+        "epsilon-greedy action actually taken next.",
+        "Sarsa: on-policy TD control (S&B 6.4).",
+    ),
+    TDEntry(
+        "q-learning",
+        "q_learning",
+        "one_step",
+        True,
+        "Q-learning, off-policy TD control (S&B section 6.5).",
+        "Q(S, A) <- Q(S, A) + alpha [R + gamma max_a Q(S', a) - Q(S, A)].",
+        "Q-learning: off-policy TD control (S&B 6.5).",
+        rule=tdk.Q_LEARNING,
+    ),
+    TDEntry(
+        "expected-sarsa",
+        "expected_sarsa",
+        "one_step",
+        True,
+        "Expected Sarsa (S&B section 6.6).",
+        "Q(S, A) <- Q(S, A) + alpha [R + gamma sum_a pi(a | S') Q(S', a) - Q(S, A)], pi the\n"
+        "epsilon-greedy policy of Q.",
+        "Expected Sarsa (S&B 6.6).",
+        rule=tdk.EXPECTED_SARSA,
+    ),
+    TDEntry(
+        "double-q-learning",
+        "double_q_learning",
+        "one_step",
+        True,
+        "Double Q-learning (S&B section 6.7), which removes the maximisation bias.",
+        "With probability 1/2: Q1(S, A) <- Q1 + alpha [R + gamma Q2(S', argmax_a Q1(S', a))\n"
+        "- Q1(S, A)], else the same with Q1 and Q2 swapped; behaviour epsilon-greedy in\n"
+        "Q1 + Q2. ``result.q`` is (Q1 + Q2) / 2.",
+        "Double Q-learning, no maximisation bias (S&B 6.7).",
+        rule=tdk.DOUBLE_Q,
+    ),
+    TDEntry(
+        "n-step-sarsa",
+        "n_step_sarsa",
+        "n_step",
+        True,
+        "n-step Sarsa (S&B section 7.2).",
+        "Q(S_tau, A_tau) <- Q + alpha [G_{tau:tau+n} - Q(S_tau, A_tau)] with G = R_{tau+1} +\n"
+        "... + gamma^{n-1} R_{tau+n} + gamma^n Q(S_{tau+n}, A_{tau+n}). n = 1 is Sarsa.",
+        "n-step Sarsa (S&B 7.2).",
+        (_N,),
+    ),
+    TDEntry(
+        "sarsa-lambda",
+        "sarsa_lambda",
+        "lambda",
+        True,
+        "Tabular Sarsa(lambda) with eligibility traces (S&B section 12.7).",
+        "delta = R + gamma Q(S', A') - Q(S, A); e(S, A) <- e + 1 (accumulating) or 1\n"
+        "(replacing); Q <- Q + alpha delta e; e <- gamma lambda e. lambda = 0 is Sarsa.",
+        "Sarsa(lambda) with eligibility traces (S&B 12.7).",
+        (_LAM, _TRACE),
+    ),
+    TDEntry(
+        "dyna-q",
+        "dyna_q",
+        "dyna",
+        True,
+        "Tabular Dyna-Q (S&B section 8.2): Q-learning plus planning from a learned model.",
+        "After each real step, Model(S, A) <- (R, S') and ``planning_steps`` Q-learning\n"
+        "updates on pairs drawn uniformly from those seen, with (R, S') from the model (the\n"
+        "last outcome seen: exact on deterministic problems). ``planning_steps = 0`` is\n"
+        "Q-learning.",
+        "Dyna-Q: Q-learning plus planning from a learned model (S&B 8.2).",
+        (_PLAN,),
+    ),
+)
+_ENTRIES = {e.name: e for e in TD_ENTRIES}
 
 
 def _make_algo(name: str, own: dict[str, Any]) -> tuple[_Algo, dict[str, Any]]:
     """The kernel settings of a TD learner from its own options, checked, and their record."""
-    family, control, rule = _TD_KINDS[name]
+    entry = _ENTRIES[name]
     fields: dict[str, Any] = {}
     params: dict[str, Any] = {}
     if "n" in own:
@@ -804,7 +1028,31 @@ def _make_algo(name: str, own: dict[str, Any]) -> tuple[_Algo, dict[str, Any]]:
     if "planning_steps" in own:
         fields["planning"] = _check_planning(own["planning_steps"])
         params["planning_steps"] = fields["planning"]
-    return _Algo(name, family, control, rule=rule, **fields), params
+    algo = _Algo(name, entry.family, entry.control, rule=entry.rule, **fields)
+    return algo, params
+
+
+def _learn_entry(name: str, args: dict[str, Any]) -> LearnResult:
+    """Run the learner of entry ``name`` with a public function's arguments (its locals)."""
+    entry = _ENTRIES[name]
+    algo, params = _make_algo(name, {o.param: args[o.param] for o in entry.own})
+    shared = {k: v for k, v in args.items() if k in _SHARED}
+    return _learn(algo, args["problem"], args.get("policy"), params=params, **shared)
+
+
+#: The keywords of :func:`_learn` every public TD learner passes on.
+_SHARED = (
+    "episodes",
+    "seed",
+    "gamma",
+    "alpha",
+    "epsilon",
+    "init",
+    "checkpoints",
+    "max_steps",
+    "model",
+    "progress",
+)
 
 
 def _check_n(n: Any) -> int:
@@ -824,6 +1072,12 @@ def _check_trace(trace: Any) -> int:
 
 def _check_planning(k: Any) -> int:
     return check_count(k, "planning_steps", minimum=0)
+
+
+# ======================================================================= the public learners
+# generated by `python -m policylab.tabular._generate` from TD_ENTRIES: edit the entries
+# (or the generator) and run it again; tests/tabular/test_registry.py checks it is current.
+# <generated learners>
 
 
 def td0(
@@ -846,38 +1100,26 @@ def td0(
 
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
-        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array
-            (default: the equiprobable random policy).
+        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
+            the equiprobable random policy).
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the state's update count or
-            a schedule string (``"1/n"``, ``"exp:0.5,0.999,0.01"``).
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
         gamma: Discount rate (default: the problem's).
         seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal V(s) (0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against v_pi.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
         max_steps: Step limit of an episode (then truncated: bootstrap).
         model: The FiniteMDP behind an env, for the error curve.
         progress: Show a progress bar.
 
     Returns:
-        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi
-        where the model is known. TD(0) learns V only: ``q`` is its one-step lookahead
-        through the model (zeros without one) and ``policy`` is the policy evaluated.
+        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
+        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
+        model (zeros without one) and ``policy`` is the policy evaluated.
     """
-    return _learn(
-        _make_algo("td0", {})[0],
-        problem,
-        policy,
-        episodes=episodes,
-        seed=seed,
-        gamma=gamma,
-        alpha=alpha,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-    )
+    return _learn_entry("td0", locals())
 
 
 def n_step_td(
@@ -900,23 +1142,30 @@ def n_step_td(
     V(S_tau) <- V(S_tau) + alpha [G_{tau:tau+n} - V(S_tau)] with the n-step return
     G_{tau:tau+n} = R_{tau+1} + gamma R_{tau+2} + ... + gamma^{n-1} R_{tau+n} +
     gamma^n V(S_{tau+n}) (no bootstrap past the episode's end). n = 1 is TD(0).
-    Arguments as :func:`td0`, plus ``n``.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
+            the equiprobable random policy).
+        n: Number of steps n of the n-step return (n = 1 is one-step TD).
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
+        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
+        model (zeros without one) and ``policy`` is the policy evaluated.
     """
-    return _learn(
-        _make_algo("n-step-td", {"n": n})[0],
-        problem,
-        policy,
-        episodes=episodes,
-        seed=seed,
-        gamma=gamma,
-        alpha=alpha,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params={"n": int(n)},
-    )
+    return _learn_entry("n-step-td", locals())
 
 
 def td_lambda(
@@ -940,79 +1189,31 @@ def td_lambda(
     delta_t = R_{t+1} + gamma V(S_{t+1}) - V(S_t); e(S_t) <- e(S_t) + 1
     (accumulating) or 1 (replacing); V <- V + alpha delta_t e; e <- gamma lambda e.
     lambda = 0 is TD(0); lambda = 1 (accumulating, offline) approaches Monte Carlo.
-    Arguments as :func:`td0`, plus ``lam`` and ``trace``.
-    """
-    return _learn(
-        _make_algo("td-lambda", {"lam": lam, "trace": trace})[0],
-        problem,
-        policy,
-        episodes=episodes,
-        seed=seed,
-        gamma=gamma,
-        alpha=alpha,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params={"lambda": float(lam), "trace": trace},
-    )
 
-
-def _control(
-    algo: _Algo,
-    problem: Any,
-    *,
-    episodes: int,
-    alpha: Any,
-    epsilon: Any,
-    gamma: float | None,
-    seed: Seed,
-    init: float,
-    checkpoints: int,
-    max_steps: int,
-    model: FiniteMDP | None,
-    progress: bool,
-    params: dict[str, Any] | None = None,
-) -> LearnResult:
-    return _learn(
-        algo,
-        problem,
-        None,
-        episodes=episodes,
-        seed=seed,
-        gamma=gamma,
-        alpha=alpha,
-        epsilon=epsilon,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params=params,
-    )
-
-
-_CONTROL_ARGS = """
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
+            the equiprobable random policy).
+        lam: Trace-decay rate lambda in [0, 1] (0 is one-step TD).
+        trace: Eligibility trace: accumulating or replacing.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the pair's update count, or a
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
             schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a
-            schedule of the episode number (``"linear:1,0.01,5000"``).
         gamma: Discount rate (default: the problem's).
         seed: Seed or Generator; same seed, same result.
-        init: Initial Q(s, a) of the non-terminal states (optimistic if high).
-        checkpoints: About how many points of the error curve against q*.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
         max_steps: Step limit of an episode (then truncated: bootstrap).
         model: The FiniteMDP behind an env, for the error curve.
         progress: Show a progress bar.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the
-        error against q* where the model is known.
-"""
+        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
+        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
+        model (zeros without one) and ``policy`` is the policy evaluated.
+    """
+    return _learn_entry("td-lambda", locals())
 
 
 def sarsa(
@@ -1033,21 +1234,28 @@ def sarsa(
 
     Q(S, A) <- Q(S, A) + alpha [R + gamma Q(S', A') - Q(S, A)], with A' the
     epsilon-greedy action actually taken next.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _make_algo("sarsa", {})[0],
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-    )
+    return _learn_entry("sarsa", locals())
 
 
 def q_learning(
@@ -1067,21 +1275,28 @@ def q_learning(
     """Q-learning, off-policy TD control (S&B section 6.5).
 
     Q(S, A) <- Q(S, A) + alpha [R + gamma max_a Q(S', a) - Q(S, A)].
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _make_algo("q-learning", {})[0],
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-    )
+    return _learn_entry("q-learning", locals())
 
 
 def expected_sarsa(
@@ -1102,21 +1317,28 @@ def expected_sarsa(
 
     Q(S, A) <- Q(S, A) + alpha [R + gamma sum_a pi(a | S') Q(S', a) - Q(S, A)], pi the
     epsilon-greedy policy of Q.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _make_algo("expected-sarsa", {})[0],
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-    )
+    return _learn_entry("expected-sarsa", locals())
 
 
 def double_q_learning(
@@ -1138,21 +1360,28 @@ def double_q_learning(
     With probability 1/2: Q1(S, A) <- Q1 + alpha [R + gamma Q2(S', argmax_a Q1(S', a))
     - Q1(S, A)], else the same with Q1 and Q2 swapped; behaviour epsilon-greedy in
     Q1 + Q2. ``result.q`` is (Q1 + Q2) / 2.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _make_algo("double-q-learning", {})[0],
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-    )
+    return _learn_entry("double-q-learning", locals())
 
 
 def n_step_sarsa(
@@ -1174,22 +1403,29 @@ def n_step_sarsa(
 
     Q(S_tau, A_tau) <- Q + alpha [G_{tau:tau+n} - Q(S_tau, A_tau)] with G = R_{tau+1} +
     ... + gamma^{n-1} R_{tau+n} + gamma^n Q(S_{tau+n}, A_{tau+n}). n = 1 is Sarsa.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        n: Number of steps n of the n-step return (n = 1 is one-step TD).
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _make_algo("n-step-sarsa", {"n": n})[0],
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params={"n": int(n)},
-    )
+    return _learn_entry("n-step-sarsa", locals())
 
 
 def sarsa_lambda(
@@ -1212,22 +1448,30 @@ def sarsa_lambda(
 
     delta = R + gamma Q(S', A') - Q(S, A); e(S, A) <- e + 1 (accumulating) or 1
     (replacing); Q <- Q + alpha delta e; e <- gamma lambda e. lambda = 0 is Sarsa.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        lam: Trace-decay rate lambda in [0, 1] (0 is one-step TD).
+        trace: Eligibility trace: accumulating or replacing.
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _make_algo("sarsa-lambda", {"lam": lam, "trace": trace})[0],
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params={"lambda": float(lam), "trace": trace},
-    )
+    return _learn_entry("sarsa-lambda", locals())
 
 
 def dyna_q(
@@ -1251,160 +1495,40 @@ def dyna_q(
     updates on pairs drawn uniformly from those seen, with (R, S') from the model (the
     last outcome seen: exact on deterministic problems). ``planning_steps = 0`` is
     Q-learning.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        planning_steps: Planning updates from the learned model after each real step (0 is
+            Q-learning).
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _make_algo("dyna-q", {"planning_steps": planning_steps})[0],
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params={"planning_steps": int(planning_steps)},
+    return _learn_entry("dyna-q", locals())
+
+
+# </generated learners>
+
+for _entry in TD_ENTRIES:
+    register_algorithm(
+        _entry.name,
+        globals()[_entry.function],
+        _entry.description,
+        options=_entry.options,
+        kind="control" if _entry.control else "prediction",
+        default_episodes=_entry.default_episodes,
     )
-
-
-for _fn in (
-    sarsa,
-    q_learning,
-    expected_sarsa,
-    double_q_learning,
-    n_step_sarsa,
-    sarsa_lambda,
-    dyna_q,
-):
-    _fn.__doc__ = (_fn.__doc__ or "").rstrip() + "\n" + _CONTROL_ARGS
-
-
-# =============================================================================== registry
-#: A learner's keywords that :func:`seed_study` sets itself.
-_SET_BY_STUDY = {"problem", "episodes", "seed", "checkpoints", "progress", "policy"}
-_KEYWORDS = (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
-#: Options every TD learner takes (besides problem, policy, episodes, seed).
-_COMMON_OPTIONS = {"alpha", "gamma", "init", "max_steps", "model"}
-_CONTROL = {"epsilon"}
-#: name -> (learner, its own options): what :func:`seed_study` calls.
-_LEARNERS: dict[str, tuple[Any, set[str]]] = {
-    "td0": (td0, set()),
-    "n-step-td": (n_step_td, {"n"}),
-    "td-lambda": (td_lambda, {"lam", "trace"}),
-    "sarsa": (sarsa, _CONTROL),
-    "q-learning": (q_learning, _CONTROL),
-    "expected-sarsa": (expected_sarsa, _CONTROL),
-    "double-q-learning": (double_q_learning, _CONTROL),
-    "n-step-sarsa": (n_step_sarsa, _CONTROL | {"n"}),
-    "sarsa-lambda": (sarsa_lambda, _CONTROL | {"lam", "trace"}),
-    "dyna-q": (dyna_q, _CONTROL | {"planning_steps"}),
-}
-
-_ALPHA = Option(
-    "--alpha",
-    "alpha",
-    "schedule",
-    "Step size alpha: a number, or a schedule of each entry's update count "
-    "(1/n, inverse:1,0.6,0.01, exp:0.5,0.999,0.01, linear:0.5,0.01,10000).",
-)
-_EPSILON = Option(
-    "--epsilon",
-    "epsilon",
-    "schedule",
-    "Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of the "
-    "episode number (1/n, exp:1,0.999,0.01, linear:1,0.01,5000).",
-)
-_INIT = Option(
-    "--init",
-    "init",
-    "float",
-    "Initial value of every non-terminal entry of the table (high values explore optimistically).",
-)
-_N = Option("--n", "n", "int", "Number of steps n of the n-step return (n = 1 is one-step TD).")
-_LAM = Option("--lambda", "lam", "float", "Trace-decay rate lambda in [0, 1] (0 is one-step TD).")
-_TRACE = Option("--trace", "trace", "str", "Eligibility trace: accumulating or replacing.")
-_PLAN = Option(
-    "--planning-steps",
-    "planning_steps",
-    "int",
-    "Planning updates from the learned model after each real step (0 is Q-learning).",
-)
-
-for _name, _learner, _desc, _opts, _kind, _eps in (
-    ("td0", td0, "TD(0) prediction of v_pi (S&B 6.1).", (_ALPHA, _INIT), "prediction", 100),
-    (
-        "n-step-td",
-        n_step_td,
-        "n-step TD prediction of v_pi (S&B 7.1).",
-        (_N, _ALPHA, _INIT),
-        "prediction",
-        100,
-    ),
-    (
-        "td-lambda",
-        td_lambda,
-        "TD(lambda) prediction with eligibility traces (S&B 12.2).",
-        (_LAM, _TRACE, _ALPHA, _INIT),
-        "prediction",
-        100,
-    ),
-    (
-        "sarsa",
-        sarsa,
-        "Sarsa: on-policy TD control (S&B 6.4).",
-        (_ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "q-learning",
-        q_learning,
-        "Q-learning: off-policy TD control (S&B 6.5).",
-        (_ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "expected-sarsa",
-        expected_sarsa,
-        "Expected Sarsa (S&B 6.6).",
-        (_ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "double-q-learning",
-        double_q_learning,
-        "Double Q-learning, no maximisation bias (S&B 6.7).",
-        (_ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "n-step-sarsa",
-        n_step_sarsa,
-        "n-step Sarsa (S&B 7.2).",
-        (_N, _ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "sarsa-lambda",
-        sarsa_lambda,
-        "Sarsa(lambda) with eligibility traces (S&B 12.7).",
-        (_LAM, _TRACE, _ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "dyna-q",
-        dyna_q,
-        "Dyna-Q: Q-learning plus planning from a learned model (S&B 8.2).",
-        (_PLAN, _ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-):
-    register_algorithm(_name, _learner, _desc, options=_opts, kind=_kind, default_episodes=_eps)  # type: ignore[arg-type]

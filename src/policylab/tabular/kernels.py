@@ -254,14 +254,20 @@ def epsilon_greedy_action(
         return uniform_action(mask_row, state)
     best_q = -np.inf
     n_best = 0
+    first = -1
     for a in range(q_row.shape[0]):
         if mask_row[a]:
             if q_row[a] > best_q:
                 best_q = q_row[a]
                 n_best = 1
+                first = a
             elif q_row[a] == best_q:
                 n_best += 1
-    k = 0 if n_best == 1 else rand_below(state, n_best)
+                if first < 0:  # the first of equal -inf values
+                    first = a
+    if n_best == 1:  # one greedy action: no tie to break, no second pass
+        return first
+    k = rand_below(state, n_best)
     for a in range(q_row.shape[0]):
         if mask_row[a] and q_row[a] == best_q:
             if k == 0:

@@ -5,8 +5,12 @@
   Gymnasium's env), a plain Python loop over Gymnasium's FrozenLake written here
   (``plain_gymnasium_q_learning``, clearly not policylab), and, where the ``bench`` extra
   is installed, pymdptoolbox's ``QLearning`` (hiive fork) on the same model.
-* A 100-seed cliff-walking study (Sarsa, epsilon 0.1, alpha 0.5, 500 episodes per seed):
-  seeds per second.
+* The public API (``q_learning``/``sarsa``, error tracking on) and ``policylab learn``
+  against the raw kernel, in the same run.
+* A 200-seed cliff-walking study (Sarsa, epsilon 0.1, alpha 0.5, 500 episodes per seed)
+  in one compiled call: ``python benchmarks/bench_td.py --study`` prints only it, to
+  compare ``taskset -c 0`` (one core) with both cores; the checksum of the returns
+  must be the same.
 
 Every figure is the best of a few repeats after a warm-up (numba compiles once and
 caches on disk). Run: ``python benchmarks/bench_td.py`` (or ``make bench``).
@@ -14,7 +18,9 @@ caches on disk). Run: ``python benchmarks/bench_td.py`` (or ``make bench``).
 
 from __future__ import annotations
 
+import json
 import os
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -80,40 +86,31 @@ def kernel_steps(
 
     def run() -> int:
         q1 = np.zeros((S, A))
-        counts = np.zeros((S, A), dtype=np.int64)
-        returns = np.zeros(episodes)
-        lengths = np.zeros(episodes, dtype=np.int64)
-        first = np.zeros(episodes, dtype=np.int64)
+        tables = tdk.Tables(
+            q1,
+            q1,
+            q1,
+            np.zeros((S, A), dtype=np.int64),
+            np.zeros((S, A)),
+            np.zeros((0, 0), dtype=np.int64),
+            np.zeros((0, 0)),
+            np.zeros(1, dtype=np.int64),
+        )
+        out = tdk.Episodes(
+            np.zeros(episodes),
+            np.zeros(episodes, dtype=np.int64),
+            np.zeros(episodes, dtype=np.int64),
+        )
+        settings = tdk.Settings(0.99, alpha, eps, 100_000, rule, 1, 0.0, 0, 0, True)
         rng = rng_states(0, 1)[0]
         if python:
             env: Any = GymStepper(pl.MDPEnv(mdp), StateIndex.discrete(S), 0)
-            model = tdk.model_tuple(None)
+            model = tdk.model_tuple(None, km.mask)
             fn = tdk.one_step_control_kernel.py_func
         else:
             env, model = None, tdk.model_tuple(km)
             fn = tdk.one_step_control_kernel
-        return int(
-            fn(
-                env,
-                model,
-                km.mask,
-                q1,
-                q1,
-                q1,
-                rule,
-                0,
-                episodes,
-                0.99,
-                alpha,
-                eps,
-                100_000,
-                rng,
-                counts,
-                returns,
-                lengths,
-                first,
-            )
-        )
+        return int(fn(env, model, tables, settings, out, rng, 0, episodes))
 
     return run
 
@@ -139,6 +136,57 @@ def mdptoolbox_steps(mdp: pl.FiniteMDP, n_iter: int) -> Callable[[], int] | None
         return n_iter
 
     return run
+
+
+def public_vs_raw(lake: pl.FiniteMDP) -> list[tuple[str, float, float, float]]:
+    """(algorithm, raw kernel, public API, ``policylab learn``) steps/s, best of repeats."""
+    out = []
+    for rule, name, learner in (
+        (tdk.Q_LEARNING, "q-learning", tabular.q_learning),
+        (tdk.SARSA, "sarsa", tabular.sarsa),
+    ):
+        kernel_steps(lake, rule, 50)()
+        learner(lake, episodes=50)
+        raw = pub = 0.0
+        for _ in range(REPEATS):
+            r, _n = best_of(kernel_steps(lake, rule, 100_000), repeats=1)
+            res = learner(lake, episodes=100_000, alpha=0.1, epsilon=0.1, seed=0)
+            raw, pub = max(raw, r), max(pub, res.steps / res.seconds)
+        cmd = [
+            os.path.join(os.path.dirname(sys.executable), "policylab"),
+            *("learn", name, "FrozenLake8x8-v1", "--episodes", "100000", "--json"),
+        ]
+        done = subprocess.run(cmd, capture_output=True, text=True, check=True)
+        got = json.loads(done.stdout)
+        out.append((name, raw, pub, got["steps"] / got["seconds"]))
+    return out
+
+
+def seed_study_row(n_seeds: int) -> tuple[int, int, float, float, str, int]:
+    """One many-seed study: (seeds, steps, seconds, mean return, checksum, threads)."""
+    import hashlib
+
+    import numba
+
+    cliff = pl.problems.cliff_walking()
+    tabular.seed_study("sarsa", cliff, 2, episodes=10)  # warm-up (load the compiled loop)
+    t0 = time.perf_counter()
+    study = tabular.seed_study(
+        "sarsa", cliff, n_seeds, seed=0, episodes=500, alpha=0.5, epsilon=0.1
+    )
+    dt = time.perf_counter() - t0
+    checksum = hashlib.sha256(study.returns.tobytes()).hexdigest()[:12]
+    return n_seeds, study.steps, dt, study.mean_return(100), checksum, numba.get_num_threads()
+
+
+def study_only() -> None:
+    """``--study``: only the 200-seed study (to compare ``taskset -c 0`` with both cores)."""
+    n_seeds, steps, dt, mean, checksum, threads = seed_study_row(200)
+    print(
+        f"{n_seeds} seeds x 500 episodes: {steps:,} steps in {dt:.3f} s ({steps / dt:,.0f} "
+        f"steps/s, {threads} threads, {len(os.sched_getaffinity(0))} cores allowed); mean "
+        f"reward {mean:.2f}; checksum {checksum}"
+    )
 
 
 def main() -> None:
@@ -179,12 +227,7 @@ def main() -> None:
         ratio = fast / plain
         rows.append((name, f"ratio compiled / plain loop: {ratio:,.0f}x", float("nan"), 0))
 
-    cliff = pl.problems.cliff_walking()
-    tabular.seed_study("sarsa", cliff, 2, episodes=10)  # warm-up
-    t0 = time.perf_counter()
-    study = tabular.seed_study("sarsa", cliff, 100, seed=0, episodes=500, alpha=0.5, epsilon=0.1)
-    dt = time.perf_counter() - t0
-
+    public_rows = public_vs_raw(lake)
     lines = [
         "Environment steps per second on FrozenLake 8x8 (slippery), one core, epsilon 0.1, "
         "alpha 0.1, gamma 0.99 (best of repeats; target: >= 10 million/s and >= 200x the "
@@ -202,19 +245,40 @@ def main() -> None:
             lines.append(f"| {algo} | {impl} | {rate:,.0f} | {n:,} |")
     lines += [
         "",
-        "100-seed cliff-walking study (Sarsa, epsilon 0.1, alpha 0.5, 500 episodes per seed, "
-        "`policylab.tabular.seed_study`):",
+        "The public path against the raw kernel, alternating in the same run (error against "
+        "q* recorded at 50 checkpoints, as users run it; `policylab learn` is FrozenLake8x8-v1 "
+        "with its own gamma 1):",
+        "",
+        "| algorithm | raw kernel steps/s | public API steps/s | public / raw | "
+        "`policylab learn` steps/s |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for algo, raw, pub, cli in public_rows:
+        lines.append(f"| {algo} | {raw:,.0f} | {pub:,.0f} | {pub / raw:.2f} | {cli:,.0f} |")
+    study_rows = [seed_study_row(200)]
+    lines += [
+        "",
+        "Many seeds in one compiled call: cliff-walking Sarsa (epsilon 0.1, alpha 0.5, 500 "
+        "episodes per seed), `policylab.tabular.seed_study` (numba prange over seeds; "
+        f"{study_rows[0][5]} threads here). The checksum of all returns is the same for any "
+        "thread count and any core set.",
         "",
         "| seeds | episodes | steps | seconds | seeds/s | steps/s | mean reward/episode "
-        "(101-500) |",
-        "|---:|---:|---:|---:|---:|---:|---:|",
-        f"| 100 | 500 | {study.steps:,} | {dt:.3f} | {100 / dt:,.0f} | {study.steps / dt:,.0f} | "
-        f"{study.mean_return(100):.1f} |",
+        "(101-500) | checksum |",
+        "|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
+    for n_seeds, steps, dt, mean, checksum, _ in study_rows:
+        lines.append(
+            f"| {n_seeds} | 500 | {steps:,} | {dt:.3f} | {n_seeds / dt:,.0f} | "
+            f"{steps / dt:,.0f} | {mean:.1f} | {checksum} |"
+        )
     body = "\n".join(lines)
     print(body)
     write_section("Temporal-difference", "python benchmarks/bench_td.py", body)
 
 
 if __name__ == "__main__":
-    main()
+    if "--study" in sys.argv[1:]:
+        study_only()
+    else:
+        main()

@@ -108,9 +108,10 @@ FINITE, RETURNS = "mdp/finite.py", "mdp/returns.py"
 KERN, TDK, MCK, SCHED = (
     "tabular/kernels.py",
     "tabular/td_kernels.py",
-    "tabular/mc.py",
+    "tabular/rules/mc.py",
     ("tabular/schedules.py"),
 )
+TDR = "tabular/rules/td.py"
 DRET, PPO, DQN, CKPT = (
     "deep/common/returns.py",
     "deep/ppo/losses.py",
@@ -365,7 +366,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     M(
         "T05",
-        TDK,
+        TDR,
         "    if terminated:\n        return r\n    return r + gamma * v_next",
         "    return r + gamma * v_next",
         TD,
@@ -373,7 +374,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     M(
         "T06",
-        TDK,
+        TDR,
         "return estimate + alpha * (target - estimate)",
         "return estimate + alpha * (target + estimate)",
         TD,
@@ -381,7 +382,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     M(
         "T07",
-        TDK,
+        TDR,
         "if mask[s_next, a] and q[s_next, a] > best:",
         "if q[s_next, a] > best:",
         TD,
@@ -389,7 +390,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     M(
         "T08",
-        TDK,
+        TDR,
         "expected += epsilon_greedy_prob(q_next_row, mask_row, epsilon, a) * q_next_row[a]",
         "expected += q_next_row[a] / q_next_row.shape[0]",
         TD,
@@ -397,7 +398,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     M(
         "T09",
-        TDK,
+        TDR,
         "return r + gamma * float(q_eval_row[arg])",
         "return r + gamma * float(q_select_row[arg])",
         TD,
@@ -405,7 +406,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     M(
         "T10",
-        TDK,
+        TDR,
         "g += p * rewards[i % m]",
         "g += rewards[i % m]",
         TD,

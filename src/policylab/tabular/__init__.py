@@ -3,67 +3,65 @@
 Public names::
 
     import policylab as pl
-    from policylab.tabular import Schedule, mc_control, mc_off_policy, mc_prediction
-    res = mc_prediction(pl.problems.slippery_gridworld(), episodes=10_000, seed=0)
+    from policylab import tabular
+    res = tabular.q_learning(pl.problems.cliff_walking(), episodes=500, alpha=0.5, seed=0)
     res.q, res.v, res.policy, res.checkpoints, res.error_max, res.error_rms
-    res = mc_control(mdp, episodes=100_000, seed=0)     # GLIE epsilon-greedy
-    res = mc_off_policy(mdp, target=pi, weighted=True, seed=0)
+    res = tabular.mc_control(mdp, episodes=100_000, seed=0)     # GLIE epsilon-greedy
+    runs = tabular.seed_study("sarsa", mdp, seeds=200, episodes=500)   # one compiled call
 
-Every learner takes ``problem`` = a :class:`~policylab.FiniteMDP` (the fast path:
-episodes simulated and updates applied in compiled numba kernels) or a Gymnasium env
-with discrete or hashable observations (the general path: a readable Python loop that
-calls the *same* compiled update rule), and returns a :class:`LearnResult`.
+Every learner takes ``problem`` = a :class:`~policylab.FiniteMDP` (the compiled path:
+episodes simulated and updates applied in numba kernels) or a Gymnasium env with
+discrete or hashable observations (the general path: the same episode loop and update
+rules run as Python over ``env.reset``/``env.step``), and returns a :class:`LearnResult`.
+
+The shared options, one convention for every learner (Monte Carlo and TD)
+-------------------------------------------------------------------------
+``problem`` first; ``policy`` second for prediction (a :class:`~policylab.Policy`);
+then keywords: ``episodes``; the algorithm's own options; ``alpha`` (step size) and
+``epsilon`` (exploration), each a number, a :class:`Schedule` or a schedule string
+(``"1/n"``, ``"exp:1,0.999,0.01"``); ``gamma`` (None: the problem's); ``seed`` (int,
+Generator or None: same seed, same result); ``checkpoints`` (points of the error curve
+against the exact answer, log-spaced); ``max_steps`` (step limit of an episode);
+``model`` (the exact FiniteMDP behind an env, for the error curve); ``progress``.
+Monte Carlo adds ``start``, ``error_on`` and ``score``; TD adds ``init``.
 
 Layout
 ------
-``schedules``  :class:`Schedule` (constant, 1/n, exponential, linear; with floors) and
-               ``schedule_value(params, n)``, the one function kernels evaluate.
-``kernels``    the kernel conventions: per-run xoshiro RNG states from a seed
-               (:func:`~policylab.tabular.kernels.rng_states`), sampling from the
-               outcome table, epsilon-greedy action choice, :func:`generate_episode`,
-               and ``env_reset``/``env_step``, through which a kernel reaches its
-               environment (the model's arrays compiled, a ``GymStepper`` as Python).
-``truth``      :class:`GroundTruth`: exact v_pi/q_pi or v*/q* (from policylab.planning)
-               and the error of an estimate (max, RMS, share of optimal greedy actions).
-``common``     ``run_seeds`` (several seeds at once, on threads; ``seed_study`` stacks
-               its results), argument checks (``check_count``, ``check_fraction``,
-               ``check_gamma``), checkpoints, the
-               :class:`~policylab.tabular.common.Recorder` of the error curve, progress
-               bars, and the general path: ``as_env``, ``env_name``, ``StateIndex``,
-               ``GymStepper``.
-``result``     :class:`LearnResult`, the one result type (``to_json()`` is the CLI's
-               ``--json``).
-``registry``   the algorithm registry ``policylab learn ALGO PROBLEM`` reads.
-``mc``         Monte Carlo prediction, control and off-policy learning.
-``td``         the TD family (chapters 6, 7, 8, 12) and ``seed_study``; its kernels,
-               one source for both paths, are in ``td_kernels``.
+``rules/``      the update rules, one small compiled function per equation, with its
+                number and section of Sutton & Barto in the docstring (``rules.td``,
+                ``rules.mc``).
+``kernels``     the kernel conventions: per-run xoshiro RNG states (``rng_states``),
+                sampling the model (a ``Model`` named tuple), ``choose_action`` (one
+                action choice for every episode loop), ``generate_episode``.
+``td_kernels``  the TD episode loops, one per family (TD(0), one-step control, n-step,
+                lambda, Dyna-Q), each taking the same named tuples (``Model``,
+                ``Tables``, ``Settings``, ``Episodes``); ``many_runs`` runs R seeds in
+                one parallel (numba ``prange``) call.
+``td``          the TD learners: ``TD_ENTRIES`` (one entry per algorithm), the driver
+                ``_learn`` (ground truth, recording, seeding, chunking, progress,
+                ``LearnResult``), the public functions generated from the entries, and
+                ``seed_study``.
+``mc``          Monte Carlo prediction, control and off-policy learning, on the same
+                conventions (``Behaviour``, ``EpisodeBuffers``, a parallel many-runs call).
+``schedules``, ``truth``, ``common``, ``result``, ``registry``: schedules, the exact
+                answer and the error, shared checks and the general path's
+                ``StateIndex``/``GymStepper``, :class:`LearnResult`, and the registry
+                that ``policylab learn ALGO PROBLEM`` and ``seed_study`` read.
 
-How to add an algorithm (e.g. SARSA, in ``policylab/tabular/td.py``)
--------------------------------------------------------------------
-1. Write the update rule once as an ``@numba.njit(cache=True)`` function, named after
-   what it computes, with its equation in the docstring (for example
-   ``sarsa_update(q, s, a, r, s2, a2, alpha, gamma, terminated)``: Q(S,A) <- Q(S,A) +
-   alpha [R + gamma Q(S',A') - Q(S,A)]). Step sizes and epsilons come in as
-   ``Schedule.params`` arrays and are read with ``schedule_value(params, n)``.
-2. Write the fast path: an ``@njit(cache=True)`` kernel that runs episodes ``k0..k1-1``
-   on the :class:`~policylab.tabular.kernels.KernelMDP` arrays with
-   ``sample_start``/``sample_next``/``epsilon_greedy_action`` and the RNG state array
-   from ``rng_states(seed)``, updating the tables in place and writing each episode's
-   return into ``returns[k]``; it returns the number of steps taken.
-3. Write the general path: the same loop in plain Python over ``env.reset``/``env.step``
-   with a :class:`~policylab.tabular.common.StateIndex`, calling the same njit update
-   rule and the same action choice with the same RNG state, so that on a deterministic
-   MDP both paths agree exactly for the same seed (test it).
-4. Write the public learner ``sarsa(problem, *, episodes, seed=None, gamma=None,
-   alpha=..., epsilon=..., checkpoints=50, progress=False, ...) -> LearnResult``:
-   ``GroundTruth.control(mdp)`` (or ``.prediction(mdp, pi)``) where the model is known,
-   ``Recorder`` + ``progress_bar`` over ``Recorder.chunks()``, then ``LearnResult``.
-5. Register it at the bottom of the module with
-   ``register_algorithm("sarsa", sarsa, "one line", options=(Option("--alpha", "alpha",
-   "schedule", "step size ..."), ...))`` and import the module here. The ``learn``
-   command picks it up; nothing else to edit. Common options (``--episodes --seed
-   --gamma --json --plot --checkpoints --max-steps --env``, and ``--policy`` for
-   ``kind="prediction"``) are added by the command.
+How to add a learner
+--------------------
+1. Write each new update as one function in ``rules/td.py`` (``@register_jitable``,
+   the equation and its section in the docstring), with a test against a hand value.
+2. A new TD variant of an existing loop: add its rule constant and branch to that loop
+   in ``td_kernels`` (a new loop: same eight arguments, add it to ``run_kernel``).
+3. Add a ``TDEntry`` to ``TD_ENTRIES`` in ``td.py`` (name, function name, family, the
+   title and equation of its docstring, its own ``Option``s with annotation/default),
+   then run ``python -m policylab.tabular._generate``: it writes the public function's
+   signature and docstring; the registry, ``policylab learn`` and ``seed_study`` read
+   the entry. Export the function here.
+4. Any other learner function: ``register_algorithm("name", fn, "one line", options=
+   (Option("--flag", "param", "float", "help"),), kind="control")``; ``policylab learn``
+   lists it and passes its options (tests/tabular/test_registry.py does this).
 """
 
 from policylab.tabular.common import Recorder, StateIndex, checkpoint_episodes, run_seeds

@@ -17,9 +17,10 @@ kernels. The pieces here are shared by every algorithm (Monte Carlo, TD family):
 * **Actions.** :func:`sample_action` draws from a policy row pi(. | s);
   :func:`epsilon_greedy_action` is epsilon-greedy on a Q row over A(s) with random
   tie-breaking; :func:`greedy_action` is the first best available action.
-* **Episodes.** :func:`generate_episode` fills preallocated buffers S_0..S_T,
-  A_0..A_{T-1}, R_1..R_T and b(A_t | S_t), following either a fixed policy table or
-  epsilon-greedy on the current Q, optionally from an exploring start.
+* **Episodes.** :func:`generate_episode` fills :class:`EpisodeBuffers` S_0..S_T,
+  A_0..A_{T-1}, R_1..R_T and b(A_t | S_t), with the actions of a :class:`Behaviour`
+  (:func:`choose_action`: a fixed policy table or epsilon-greedy on the current Q,
+  optionally from an exploring start). A kernel reads the model as a :class:`Model`.
 
 Every function here is also callable from plain Python (numba dispatches), which is
 how the general path over a Gymnasium env reuses the same action choice and update
@@ -29,7 +30,7 @@ rules.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numba as nb
 import numpy as np
@@ -46,9 +47,15 @@ if TYPE_CHECKING:
 __all__ = [
     "EPSILON_GREEDY",
     "FIXED_POLICY",
+    "Behaviour",
+    "EpisodeBuffers",
     "KernelMDP",
+    "Model",
+    "behaviour_epsilon",
+    "choose_action",
     "env_reset",
     "env_step",
+    "episode_buffers",
     "epsilon_greedy_action",
     "epsilon_greedy_prob",
     "exploring_start_state",
@@ -247,14 +254,20 @@ def epsilon_greedy_action(
         return uniform_action(mask_row, state)
     best_q = -np.inf
     n_best = 0
+    first = -1
     for a in range(q_row.shape[0]):
         if mask_row[a]:
             if q_row[a] > best_q:
                 best_q = q_row[a]
                 n_best = 1
+                first = a
             elif q_row[a] == best_q:
                 n_best += 1
-    k = 0 if n_best == 1 else rand_below(state, n_best)
+                if first < 0:  # the first of equal -inf values
+                    first = a
+    if n_best == 1:  # one greedy action: no tie to break, no second pass
+        return first
+    k = rand_below(state, n_best)
     for a in range(q_row.shape[0]):
         if mask_row[a] and q_row[a] == best_q:
             if k == 0:
@@ -285,88 +298,143 @@ def epsilon_greedy_prob(
     return p
 
 
+class Model(NamedTuple):
+    """The arrays of a FiniteMDP that a kernel samples (a :class:`KernelMDP`, as a tuple).
+
+    ``indptr``, ``next_states``, ``probs``, ``rewards``: the outcome table (row
+    ``s * A + a``); ``terminal``; ``initial``: the start distribution; ``mask``: A(s).
+    On the general path (a Gymnasium env steps instead) the first six are empty arrays
+    of the same types and ``mask`` is A(s).
+    """
+
+    indptr: Any
+    next_states: Any
+    probs: Any
+    rewards: Any
+    terminal: Any
+    initial: Any
+    mask: Any
+
+
+class Behaviour(NamedTuple):
+    """How an episode's actions are chosen (:func:`choose_action`).
+
+    ``kind``: :data:`FIXED_POLICY` (draw from the (S, A) table ``pi``) or
+    :data:`EPSILON_GREEDY` (epsilon-greedy in the current Q). ``epsilon``: the schedule's
+    params, read at the episode number, or with ``by_state`` at the visit count + 1 of
+    the current state (GLIE state by state, capped at 1). ``exploring_starts``: S_0 a
+    uniform non-terminal state and A_0 a uniform action of A(S_0), then the policy.
+    """
+
+    kind: int
+    pi: Any
+    epsilon: Any
+    by_state: bool
+    exploring_starts: bool
+
+
+class EpisodeBuffers(NamedTuple):
+    """One episode's buffers, with room for ``len(a)`` steps.
+
+    ``s[0..T]`` = S_0..S_T, ``a[t]`` = A_t, ``r[t]`` = R_{t+1}, ``b[t]`` = b(A_t | S_t),
+    the probability with which A_t was chosen.
+    """
+
+    s: Any
+    a: Any
+    r: Any
+    b: Any
+
+
+def episode_buffers(max_steps: int) -> EpisodeBuffers:
+    """Empty :class:`EpisodeBuffers` for episodes of at most ``max_steps`` steps."""
+    return EpisodeBuffers(
+        np.zeros(max_steps + 1, dtype=np.int64),
+        np.zeros(max_steps, dtype=np.int64),
+        np.zeros(max_steps),
+        np.zeros(max_steps),
+    )
+
+
+@nb.njit(cache=True, nogil=True)
+def behaviour_epsilon(
+    by_state: bool, epsilon_params: NDArray[np.float64], epsilon: float, visits: float
+) -> float:  # pragma: no cover - compiled
+    """The exploration rate in a state: the episode's ``epsilon``, or by state visits.
+
+    With ``by_state``: the schedule at the state's visit count + 1, capped at 1 (GLIE
+    state by state).
+    """
+    if by_state:
+        return min(1.0, schedule_value(epsilon_params, visits + 1.0))
+    return epsilon
+
+
+@nb.njit(cache=True, nogil=True)
+def choose_action(
+    kind: int,
+    explore: bool,
+    pi_row: NDArray[np.float64],
+    q_row: NDArray[np.float64],
+    mask_row: NDArray[np.bool_],
+    epsilon: float,
+    rng: NDArray[np.uint64],
+) -> tuple[int, float]:  # pragma: no cover - compiled
+    """(A_t, b(A_t | S_t)): a behaviour's action in a state and its probability.
+
+    ``explore``: an exploring start's first step (a uniform action of A(s)); else
+    ``kind`` :data:`FIXED_POLICY` draws from ``pi_row`` = pi(. | S_t) and
+    :data:`EPSILON_GREEDY` is epsilon-greedy in ``q_row`` = Q(S_t, .).
+    """
+    if explore:
+        return uniform_action(mask_row, rng), 1.0 / _n_available(mask_row)
+    if kind == FIXED_POLICY:
+        a = sample_action(pi_row, rng)
+        return a, pi_row[a]
+    a = epsilon_greedy_action(q_row, mask_row, epsilon, rng)
+    return a, epsilon_greedy_prob(q_row, mask_row, epsilon, a)
+
+
 @nb.njit(cache=True, nogil=True)
 def generate_episode(
-    indptr: NDArray[np.int64],
-    next_states: NDArray[np.int32],
-    probs: NDArray[np.float64],
-    rewards: NDArray[np.float64],
-    terminal: NDArray[np.bool_],
-    mask: NDArray[np.bool_],
-    initial: NDArray[np.float64],
-    policy_kind: int,
-    pi: NDArray[np.float64],
+    model: Model,
+    behaviour: Behaviour,
     q: NDArray[np.float64],
     epsilon: float,
-    exploring_start: bool,
-    rng: NDArray[np.uint64],
-    buf_s: NDArray[np.int64],
-    buf_a: NDArray[np.int64],
-    buf_r: NDArray[np.float64],
-    buf_b: NDArray[np.float64],
-    eps_params: NDArray[np.float64],
     visits: NDArray[np.float64],
-) -> int:  # pragma: no cover - compiled
-    """Simulate one episode into the buffers; return its length T (negative if truncated).
+    rng: NDArray[np.uint64],
+    buf: EpisodeBuffers,
+) -> tuple[int, bool]:  # pragma: no cover - compiled
+    """Simulate one episode on the model into ``buf``; return (its length T, truncated).
 
-    ``buf_s[0..T]`` = S_0..S_T, ``buf_a[0..T-1]`` = A_0..A_{T-1}, ``buf_r[t]`` =
-    R_{t+1}, ``buf_b[t]`` = b(A_t | S_t), the probability with which A_t was chosen.
-    The episode stops at a terminal state, or is truncated (returned as -T) when the
-    buffers (``len(buf_a)`` steps) are full.
-
-    Args:
-        indptr: Outcome table offsets (row ``s * A + a``).
-        next_states: Next state of each outcome.
-        probs: Probability of each outcome.
-        rewards: Reward of each outcome.
-        terminal: (S,) terminal mask.
-        mask: (S, A) A(s).
-        initial: (S,) start distribution (ignored with exploring starts).
-        policy_kind: ``FIXED_POLICY`` (draw from the table ``pi``) or
-            ``EPSILON_GREEDY`` (epsilon-greedy on ``q``).
-        exploring_start: Start from a uniform non-terminal state and a uniform action
-            of A(S_0) (the exploring-starts assumption), then follow the policy.
-        pi: (S, A) policy table (``FIXED_POLICY``).
-        q: (S, A) action values (``EPSILON_GREEDY``).
-        epsilon: Exploration rate (``EPSILON_GREEDY``).
-        rng: The run's RNG state (advanced in place).
-        buf_s: (max_steps + 1,) states out.
-        buf_a: (max_steps,) actions out.
-        buf_r: (max_steps,) rewards out.
-        buf_b: (max_steps,) behaviour probabilities out.
-        eps_params: With a non-empty ``visits``: the epsilon schedule, evaluated per
-            state at its visit count + 1 (GLIE by state, epsilon capped at 1) instead
-            of the per-episode ``epsilon``.
-        visits: (S,) visit counts for per-state epsilon, or an empty array.
+    The episode stops at a terminal state, or is truncated when the buffers
+    (``len(buf.a)`` steps) are full. Actions come from :func:`choose_action` with
+    ``q`` (S, A) the current action values and ``epsilon`` the episode's rate
+    (``visits`` (S,) the state visit counts for a rate by state).
     """
+    mask, terminal = model.mask, model.terminal
     n_actions = mask.shape[1]
-    max_steps = buf_a.shape[0]
-    s = exploring_start_state(terminal, rng) if exploring_start else sample_start(initial, rng)
-    buf_s[0] = s
+    max_steps = buf.a.shape[0]
+    if behaviour.exploring_starts:
+        s = exploring_start_state(terminal, rng)
+    else:
+        s = sample_start(model.initial, rng)
+    buf.s[0] = s
     t = 0
     while not terminal[s]:
         if t >= max_steps:
-            return -t
-        if exploring_start and t == 0:
-            a = uniform_action(mask[s], rng)
-            b = 1.0 / _n_available(mask[s])
-        elif policy_kind == FIXED_POLICY:
-            a = sample_action(pi[s], rng)
-            b = pi[s, a]
-        else:
-            eps = epsilon
-            if visits.shape[0] > 0:
-                eps = min(1.0, schedule_value(eps_params, visits[s] + 1.0))
-            a = epsilon_greedy_action(q[s], mask[s], eps, rng)
-            b = epsilon_greedy_prob(q[s], mask[s], eps, a)
-        k = sample_next(indptr, probs, s * n_actions + a, rng)
-        buf_a[t] = a
-        buf_b[t] = b
-        buf_r[t] = rewards[k]
-        s = next_states[k]
+            return t, True
+        eps = behaviour_epsilon(behaviour.by_state, behaviour.epsilon, epsilon, visits[s])
+        explore = behaviour.exploring_starts and t == 0
+        a, b = choose_action(behaviour.kind, explore, behaviour.pi[s], q[s], mask[s], eps, rng)
+        k = sample_next(model.indptr, model.probs, s * n_actions + a, rng)
+        buf.a[t] = a
+        buf.b[t] = b
+        buf.r[t] = model.rewards[k]
+        s = model.next_states[k]
         t += 1
-        buf_s[t] = s
-    return t
+        buf.s[t] = s
+    return t, False
 
 
 # ---------------------------------------------------------------------------- the environment

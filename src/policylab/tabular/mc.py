@@ -28,12 +28,15 @@ Each runs on a :class:`~policylab.FiniteMDP` (compiled kernels) or on a Gymnasiu
 
 from __future__ import annotations
 
+import contextvars
 import time
 from collections.abc import Callable, Hashable
-from typing import TYPE_CHECKING, Any, Literal
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numba as nb
 import numpy as np
+from numba import prange
 
 from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
 from policylab.tabular.common import (
@@ -52,20 +55,31 @@ from policylab.tabular.common import (
 from policylab.tabular.kernels import (
     EPSILON_GREEDY,
     FIXED_POLICY,
+    Behaviour,
+    EpisodeBuffers,
     KernelMDP,
-    epsilon_greedy_action,
-    epsilon_greedy_prob,
+    Model,
+    behaviour_epsilon,
+    choose_action,
     exploring_start_state,
     generate_episode,
-    greedy_action,
     rng_states,
-    sample_action,
-    uniform_action,
     writable,
 )
 from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
-from policylab.tabular.schedules import Schedule, as_schedule, schedule_value
+from policylab.tabular.rules.mc import (
+    AVERAGE,
+    IS_CONTROL,
+    IS_PREDICTION,
+    MCScratch,
+    MCSettings,
+    MCTables,
+    episode_return,
+    first_visit_flags,
+    mc_episode_update,
+)
+from policylab.tabular.schedules import CONSTANT, Schedule, as_schedule, schedule_value
 from policylab.tabular.truth import GroundTruth, greedy_probs
 from policylab.validation import as_generator
 
@@ -89,280 +103,168 @@ __all__ = [
 
 Seed = int | np.random.Generator | None
 
-#: Update kinds of :func:`mc_episode_update`.
-AVERAGE, IS_PREDICTION, IS_CONTROL = 0, 1, 2
-
-
-# =============================================================================== update rules
-@nb.njit(cache=True, nogil=True)
-def episode_return(rewards: NDArray[np.float64], T: int, gamma: float) -> float:  # pragma: no cover
-    """G_0 = sum_{k=0}^{T-1} gamma^k R_{k+1} of the episode in ``rewards[:T]``."""
-    g = 0.0
-    for t in range(T - 1, -1, -1):
-        g = rewards[t] + gamma * g
-    return g
-
-
-@nb.njit(cache=True, nogil=True)
-def first_visit_flags(
-    keys: NDArray[np.int64], T: int, mark: NDArray[np.int64], stamp: int, flags: NDArray[np.bool_]
-) -> None:  # pragma: no cover - compiled
-    """flags[t] = True iff keys[t] does not occur in keys[:t] (the first visit at time t).
-
-    ``mark`` is a scratch array over all keys and ``stamp`` a number never used before
-    with it (the episode number), so nothing needs clearing between episodes.
-    """
-    for t in range(T):
-        k = keys[t]
-        if mark[k] != stamp:
-            mark[k] = stamp
-            flags[t] = True
-        else:
-            flags[t] = False
-
-
-@nb.njit(cache=True, nogil=True)
-def mc_episode_update(
-    kind: int,
-    q: NDArray[np.float64],
-    nq: NDArray[np.float64],
-    cq: NDArray[np.float64],
-    v: NDArray[np.float64],
-    nv: NDArray[np.float64],
-    cv: NDArray[np.float64],
-    n_actions: int,
-    buf_s: NDArray[np.int64],
-    buf_a: NDArray[np.int64],
-    buf_r: NDArray[np.float64],
-    buf_b: NDArray[np.float64],
-    T: int,
-    gamma: float,
-    first_visit: bool,
-    alpha: NDArray[np.float64],
-    weighted: bool,
-    target: NDArray[np.float64],
-    mask: NDArray[np.bool_],
-    keys: NDArray[np.int64],
-    flags_q: NDArray[np.bool_],
-    flags_v: NDArray[np.bool_],
-    mark_q: NDArray[np.int64],
-    mark_v: NDArray[np.int64],
-    stamp: int,
-) -> None:  # pragma: no cover - compiled
-    """Update the tables from one finished episode, backwards from t = T - 1 to 0.
-
-    G_t = R_{t+1} + gamma G_{t+1}. Flat tables: ``q, nq, cq`` over s * A + a and
-    ``v, nv, cv`` over s (values, visit counts, cumulative importance weights).
-
-    * ``AVERAGE`` (on-policy): N <- N + 1; Q(S_t, A_t) <- Q + alpha_N (G_t - Q), and
-      the same for V(S_t); alpha_N = schedule ``alpha`` at N (1/N: sample average).
-    * ``IS_PREDICTION``: rho_t = pi(A_t | S_t) / b(A_t | S_t); W_t = prod_{k=t+1}^{T-1}
-      rho_k for Q(S_t, A_t) and rho_t W_t for V(S_t). Ordinary importance sampling:
-      N <- N + 1, Q <- Q + (W G_t - Q) / N, the mean of W G over all visits. Weighted:
-      C <- C + W, Q <- Q + (W / C)(G_t - Q), i.e. sum W G / sum W.
-    * ``IS_CONTROL``: the same for the greedy target pi(s) = argmax_a Q(s, a) (updated
-      as it goes, Sutton & Barto section 5.7): after updating Q(S_t, A_t), W becomes 0
-      (weighted: stop) if A_t is not greedy, else W <- W / b(A_t | S_t).
-
-    With ``first_visit`` only the first visit of a key in the episode is used.
-    """
-    for t in range(T):
-        keys[t] = buf_s[t] * n_actions + buf_a[t]
-    if first_visit:
-        first_visit_flags(keys, T, mark_q, stamp, flags_q)
-        first_visit_flags(buf_s, T, mark_v, stamp, flags_v)
-    g = 0.0
-    w = 1.0
-    for t in range(T - 1, -1, -1):
-        g = buf_r[t] + gamma * g
-        s = buf_s[t]
-        k = keys[t]
-        use_q = (not first_visit) or flags_q[t]
-        use_v = (not first_visit) or flags_v[t]
-        if kind == 0:
-            if use_q:
-                nq[k] += 1.0
-                q[k] += schedule_value(alpha, nq[k]) * (g - q[k])
-            if use_v:
-                nv[s] += 1.0
-                v[s] += schedule_value(alpha, nv[s]) * (g - v[s])
-            continue
-        rho = target[k] / buf_b[t] if kind == 1 else 0.0
-        w_v = w * rho
-        if use_q:
-            nq[k] += 1.0
-            if weighted:
-                if w > 0.0:
-                    cq[k] += w
-                    q[k] += (w / cq[k]) * (g - q[k])
-            else:
-                q[k] += (w * g - q[k]) / nq[k]
-        if kind == 1 and use_v:
-            nv[s] += 1.0
-            if weighted:
-                if w_v > 0.0:
-                    cv[s] += w_v
-                    v[s] += (w_v / cv[s]) * (g - v[s])
-            else:
-                v[s] += (w_v * g - v[s]) / nv[s]
-        if kind == 2:
-            row = q[s * n_actions : (s + 1) * n_actions]
-            if buf_a[t] == greedy_action(row, mask[s]):
-                rho = 1.0 / buf_b[t]
-        w *= rho
-        if weighted and w == 0.0:
-            break
-
 
 # =============================================================================== fast path
+class _MCRun(NamedTuple):
+    """Everything one Monte Carlo run updates: tables, the (S, A) Q, buffers, records."""
+
+    tables: MCTables
+    q: Any
+    buf: EpisodeBuffers
+    scratch: MCScratch
+    returns: Any
+    lengths: Any
+
+
 @nb.njit(cache=True, nogil=True)
 def _mc_chunk(
-    indptr: NDArray[np.int64],
-    next_states: NDArray[np.int32],
-    probs: NDArray[np.float64],
-    rewards: NDArray[np.float64],
-    terminal: NDArray[np.bool_],
-    mask: NDArray[np.bool_],
-    initial: NDArray[np.float64],
-    gamma: float,
-    kind: int,
-    policy_kind: int,
-    pi: NDArray[np.float64],
-    q2: NDArray[np.float64],
-    eps_params: NDArray[np.float64],
-    exploring_starts: bool,
-    first_visit: bool,
-    alpha: NDArray[np.float64],
-    weighted: bool,
-    target: NDArray[np.float64],
-    nq: NDArray[np.float64],
-    cq: NDArray[np.float64],
-    v: NDArray[np.float64],
-    nv: NDArray[np.float64],
-    cv: NDArray[np.float64],
+    model: Model,
+    behaviour: Behaviour,
+    settings: MCSettings,
+    run: _MCRun,
     rng: NDArray[np.uint64],
     k0: int,
     k1: int,
-    returns: NDArray[np.float64],
-    work_i: NDArray[np.int64],
-    work_f: NDArray[np.float64],
-    work_b: NDArray[np.bool_],
-    mark_q: NDArray[np.int64],
-    mark_v: NDArray[np.int64],
-    eps_by_state: bool,
 ) -> tuple[int, int]:  # pragma: no cover - compiled
-    """Run episodes k0..k1-1 on the outcome table; return (steps, truncated episodes)."""
-    visits = nv if eps_by_state else nv[:0]
-    n_actions = mask.shape[1]
-    m = work_f.shape[0] // 2
-    buf_s = work_i[: m + 1]
-    buf_a = work_i[m + 1 : 2 * m + 1]
-    keys = work_i[2 * m + 1 :]
-    buf_r = work_f[:m]
-    buf_b = work_f[m:]
-    flags_q = work_b[:m]
-    flags_v = work_b[m:]
-    q = q2.ravel()
+    """Run episodes k0..k1-1 on the outcome table; return (steps, truncated episodes).
+
+    Each episode: generate it with the behaviour, record its return G_0, and (unless it
+    was truncated: Monte Carlo needs complete episodes) update the tables from it.
+    """
+    tables, q, buf, scratch, returns = run.tables, run.q, run.buf, run.scratch, run.returns
     steps = 0
     truncated = 0
     for k in range(k0, k1):
-        eps = schedule_value(eps_params, k + 1.0)
-        T = generate_episode(
-            indptr,
-            next_states,
-            probs,
-            rewards,
-            terminal,
-            mask,
-            initial,
-            policy_kind,
-            pi,
-            q2,
-            eps,
-            exploring_starts,
-            rng,
-            buf_s,
-            buf_a,
-            buf_r,
-            buf_b,
-            eps_params,
-            visits,
-        )
-        if T < 0:
-            truncated += 1
-            steps += -T
-            returns[k] = episode_return(buf_r, -T, gamma)
-            continue
+        eps = schedule_value(behaviour.epsilon, k + 1.0)
+        T, cut = generate_episode(model, behaviour, q, eps, tables.nv, rng, buf)
         steps += T
-        returns[k] = episode_return(buf_r, T, gamma)
-        mc_episode_update(
-            kind,
-            q,
-            nq,
-            cq,
-            v,
-            nv,
-            cv,
-            n_actions,
-            buf_s,
-            buf_a,
-            buf_r,
-            buf_b,
-            T,
-            gamma,
-            first_visit,
-            alpha,
-            weighted,
-            target,
-            mask,
-            keys,
-            flags_q,
-            flags_v,
-            mark_q,
-            mark_v,
-            k + 1,
-        )
+        run.lengths[k] = T
+        returns[k] = episode_return(buf.r, T, settings.gamma)
+        if cut:
+            truncated += 1
+            continue
+        mc_episode_update(settings, tables, buf, scratch, model.mask, T, k + 1)
     return steps, truncated
 
 
-class _Tables:
-    """The per-run tables and scratch buffers of a Monte Carlo learner."""
+class _Stack(NamedTuple):
+    """The arrays of R runs (leading run axis), flat: what the parallel loop takes."""
 
-    def __init__(self, S: int, A: int, max_steps: int) -> None:
-        self.q = np.zeros((S, A))
-        self.nq = np.zeros(S * A)
-        self.cq = np.zeros(S * A)
-        self.v = np.zeros(S)
-        self.nv = np.zeros(S)
-        self.cv = np.zeros(S)
-        self.mark_q = np.zeros(S * A, dtype=np.int64)
-        self.mark_v = np.zeros(S, dtype=np.int64)
-        m = max_steps
-        self.work_i = np.zeros(3 * m + 1, dtype=np.int64)
-        self.work_f = np.zeros(2 * m)
-        self.work_b = np.zeros(2 * m, dtype=np.bool_)
-        self.max_steps = m
+    q2: Any
+    q: Any
+    nq: Any
+    cq: Any
+    v: Any
+    nv: Any
+    cv: Any
+    s: Any
+    a: Any
+    r: Any
+    b: Any
+    keys: Any
+    flags_q: Any
+    flags_v: Any
+    mark_q: Any
+    mark_v: Any
+    returns: Any
+    lengths: Any
 
-    def grow(self, S: int) -> None:
-        """Make room for S states (general path with a growing state index)."""
-        if self.q.shape[0] >= S:
-            return
-        A = self.q.shape[1]
-        self.q = grow_rows(self.q, S)
-        n = self.q.shape[0]
-        self.nq = _grow_flat(self.nq, n * A)
-        self.cq = _grow_flat(self.cq, n * A)
-        self.mark_q = _grow_flat(self.mark_q, n * A)
-        self.v = _grow_flat(self.v, n)
-        self.nv = _grow_flat(self.nv, n)
-        self.cv = _grow_flat(self.cv, n)
-        self.mark_v = _grow_flat(self.mark_v, n)
 
-    def buffers(self) -> tuple[NDArray[Any], ...]:
-        """(buf_s, buf_a, keys, buf_r, buf_b, flags_q, flags_v) views of the scratch."""
-        m = self.max_steps
-        wi, wf, wb = self.work_i, self.work_f, self.work_b
-        return wi[: m + 1], wi[m + 1 : 2 * m + 1], wi[2 * m + 1 :], wf[:m], wf[m:], wb[:m], wb[m:]
+def _stack(runs: _MCRun) -> _Stack:
+    return _Stack(runs.q, *runs.tables, *runs.buf, *runs.scratch, runs.returns, runs.lengths)
+
+
+@nb.njit(cache=True, nogil=True)
+def _run_of(x: _Stack, r: int) -> _MCRun:  # pragma: no cover - compiled
+    """Run r of stacked runs (views of its slices)."""
+    return _MCRun(
+        MCTables(x.q[r], x.nq[r], x.cq[r], x.v[r], x.nv[r], x.cv[r]),
+        x.q2[r],
+        EpisodeBuffers(x.s[r], x.a[r], x.r[r], x.b[r]),
+        MCScratch(x.keys[r], x.flags_q[r], x.flags_v[r], x.mark_q[r], x.mark_v[r]),
+        x.returns[r],
+        x.lengths[r],
+    )
+
+
+@nb.njit(cache=True, parallel=True)
+def _many_mc_runs(
+    model: Model,
+    behaviour: Behaviour,
+    settings: MCSettings,
+    runs: _Stack,
+    rngs: NDArray[np.uint64],
+    episodes: int,
+) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """R independent runs in parallel (``prange``), returning (R, 2) steps and truncated.
+
+    ``runs`` holds every array with a leading run axis. Run r touches only its slices
+    and its RNG stream ``rngs[r]``, so its numbers are those of the run alone.
+    """
+    n_runs = rngs.shape[0]
+    out = np.zeros((n_runs, 2), dtype=np.int64)
+    for r in prange(n_runs):
+        steps, truncated = _mc_chunk(
+            model, behaviour, settings, _run_of(runs, r), rngs[r], 0, episodes
+        )
+        out[r, 0] = steps
+        out[r, 1] = truncated
+    return out
+
+
+def _mc_run(S: int, A: int, max_steps: int, episodes: int, n_runs: int | None = None) -> _MCRun:
+    """Fresh arrays of one run (``n_runs`` None) or of ``n_runs`` runs (leading axis)."""
+    lead = () if n_runs is None else (n_runs,)
+    q = np.zeros((*lead, S, A))
+    m = max_steps
+    return _MCRun(
+        MCTables(
+            q.reshape(*lead, S * A),
+            np.zeros((*lead, S * A)),
+            np.zeros((*lead, S * A)),
+            np.zeros((*lead, S)),
+            np.zeros((*lead, S)),
+            np.zeros((*lead, S)),
+        ),
+        q,
+        EpisodeBuffers(
+            np.zeros((*lead, m + 1), dtype=np.int64),
+            np.zeros((*lead, m), dtype=np.int64),
+            np.zeros((*lead, m)),
+            np.zeros((*lead, m)),
+        ),
+        MCScratch(
+            np.zeros((*lead, m), dtype=np.int64),
+            np.zeros((*lead, m), dtype=np.bool_),
+            np.zeros((*lead, m), dtype=np.bool_),
+            np.zeros((*lead, S * A), dtype=np.int64),
+            np.zeros((*lead, S), dtype=np.int64),
+        ),
+        np.zeros((*lead, episodes)),
+        np.zeros((*lead, episodes), dtype=np.int64),
+    )
+
+
+def _grow(run: _MCRun, S: int) -> _MCRun:
+    """``run`` with room for S states (general path with a growing state index)."""
+    if run.q.shape[0] >= S:
+        return run
+    A = run.q.shape[1]
+    q = grow_rows(run.q, S)
+    n = q.shape[0]
+    t, c = run.tables, run.scratch
+    return run._replace(
+        tables=MCTables(
+            q.reshape(n * A),
+            _grow_flat(t.nq, n * A),
+            _grow_flat(t.cq, n * A),
+            _grow_flat(t.v, n),
+            _grow_flat(t.nv, n),
+            _grow_flat(t.cv, n),
+        ),
+        q=q,
+        scratch=c._replace(mark_q=_grow_flat(c.mark_q, n * A), mark_v=_grow_flat(c.mark_v, n)),
+    )
 
 
 def _grow_flat(arr: NDArray[Any], n: int) -> NDArray[Any]:
@@ -423,6 +325,18 @@ def _run(
             f"Monte Carlo needs an episodic task; {mdp.name!r} has no terminal state (use a TD "
             "method for continuing tasks)"
         )
+    if env is None and _PLAN.get():  # seed_study asks for the compiled run, not a result
+        assert mdp is not None  # the compiled path always has a model
+        model_, behaviour, settings = _fast_setup(
+            mdp, policy, policy_kind, epsilon, eps_by_state, exploring_starts, start,
+            kind, g, first_visit, alpha, weighted, target,
+        )  # fmt: skip
+        raise _Planned(
+            _Plan(
+                algorithm, mdp, model_, behaviour, settings, episodes, max_steps,
+                _keeps_v(kind, truth_kind),
+            )
+        )  # fmt: skip
     truth: GroundTruth | None = None
     if mdp is not None and score:
         if truth_kind == "prediction":
@@ -431,51 +345,37 @@ def _run(
         else:
             truth = GroundTruth.control(mdp, on=error_on, gamma=g)
     rec = Recorder(truth, ckpts)
-    returns = np.zeros(episodes)
     gen = as_generator(seed)
     rng = rng_states(gen, 1)[0]
     t0 = time.perf_counter()
     if env is None and mdp is not None:
-        tables, steps, truncated = _run_fast(
-            mdp,
-            rec,
-            returns,
-            rng,
-            kind=kind,
-            gamma=g,
-            policy=policy,
-            policy_kind=policy_kind,
-            epsilon=epsilon,
-            exploring_starts=exploring_starts,
-            eps_by_state=eps_by_state,
-            first_visit=first_visit,
-            alpha=alpha,
-            weighted=weighted,
-            target=target,
-            max_steps=max_steps,
-            start=start,
-            progress=progress,
-            name=algorithm,
-        )
+        model_, behaviour, settings = _fast_setup(
+            mdp, policy, policy_kind, epsilon, eps_by_state, exploring_starts, start,
+            kind, g, first_visit, alpha, weighted, target,
+        )  # fmt: skip
+        run = _mc_run(mdp.n_states, mdp.n_actions, max_steps, episodes)
+        steps = truncated = 0
+        with progress_bar(progress, episodes, algorithm) as advance:
+            for k0, k1 in rec.chunks():
+                st, tr = _mc_chunk(model_, behaviour, settings, run, rng, k0, k1)
+                steps += st
+                truncated += tr
+                rec.record(run.q, run.tables.v)
+                advance(k1 - k0)
         index_labels: tuple[Hashable, ...] = mdp.states
     else:
-        tables, steps, truncated, index_labels = _run_env(
+        run, steps, truncated, index_labels = _run_env(
             env,
             mdp,
             rec,
-            returns,
             rng,
             gen,
-            kind=kind,
-            gamma=g,
+            episodes=episodes,
             policy=policy,
-            policy_kind=policy_kind,
-            epsilon=epsilon,
-            exploring_starts=exploring_starts,
-            eps_by_state=eps_by_state,
-            first_visit=first_visit,
-            alpha=alpha,
-            weighted=weighted,
+            behaviour=Behaviour(
+                policy_kind, np.zeros((0, 0)), epsilon.params, eps_by_state, exploring_starts
+            ),
+            settings=MCSettings(g, kind, first_visit, alpha.params, weighted, np.zeros(0)),
             target=target,
             max_steps=max_steps,
             progress=progress,
@@ -483,22 +383,15 @@ def _run(
         )
     seconds = time.perf_counter() - t0
     S = len(index_labels)
-    q = tables.q[:S].copy()
     if mdp is not None:
         mask = np.asarray(mdp.action_mask, dtype=bool)
         terminal = np.asarray(mdp.terminal, dtype=bool)
         actions = mdp.actions
     else:
-        mask = np.ones(q.shape, dtype=bool)
+        mask = np.ones((S, run.q.shape[1]), dtype=bool)
         terminal = np.zeros(S, dtype=bool)
-        actions = tuple(range(q.shape[1]))
-    q[~mask] = 0.0
-    if (kind == AVERAGE and truth_kind == "prediction") or kind == IS_PREDICTION:
-        v = tables.v[:S].copy()
-    else:
-        v = np.where(mask, q, -np.inf).max(axis=1)
-        v[~mask.any(axis=1)] = 0.0
-    v[terminal] = 0.0
+        actions = tuple(range(run.q.shape[1]))
+    q, v = _q_and_v(run.q[:S], run.tables.v[:S], mask, terminal, _keeps_v(kind, truth_kind))
     return LearnResult(
         algorithm=algorithm,
         problem=mdp.name if mdp is not None else env_name(env),
@@ -509,12 +402,13 @@ def _run(
         policy=greedy_probs(q, mask),
         terminal=terminal,
         action_mask=mask,
-        counts=tables.nq[: S * q.shape[1]].reshape(S, q.shape[1]).copy(),
+        counts=run.tables.nq[: S * q.shape[1]].reshape(S, q.shape[1]).copy(),
         episodes=episodes,
         steps=int(steps),
         seconds=seconds,
-        episode_returns=returns,
+        episode_returns=run.returns,
         truncated=int(truncated),
+        episode_lengths=run.lengths,
         params={
             **params,
             "gamma": g,
@@ -526,79 +420,112 @@ def _run(
     )
 
 
-def _run_fast(
+def _keeps_v(kind: int, truth_kind: str) -> bool:
+    """Whether V is learned itself (prediction) rather than read off Q as max_a Q."""
+    return (kind == AVERAGE and truth_kind == "prediction") or kind == IS_PREDICTION
+
+
+def _q_and_v(
+    q: NDArray[np.float64],
+    v_learned: NDArray[np.float64],
+    mask: NDArray[np.bool_],
+    terminal: NDArray[np.bool_],
+    keeps_v: bool,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The result's Q (0 off A(s)) and V (learned, or max over A(s) of Q; 0 if terminal)."""
+    q = np.where(mask, q, 0.0)
+    if keeps_v:
+        v = v_learned.copy()
+    else:
+        v = np.where(mask, q, -np.inf).max(axis=1)
+        v[~mask.any(axis=1)] = 0.0
+    v[terminal] = 0.0
+    return q, v
+
+
+def _fast_setup(
     mdp: FiniteMDP,
-    rec: Recorder,
-    returns: NDArray[np.float64],
-    rng: NDArray[np.uint64],
-    *,
-    kind: int,
-    gamma: float,
     policy: Any,
     policy_kind: int,
     epsilon: Schedule,
-    exploring_starts: bool,
     eps_by_state: bool,
+    exploring_starts: bool,
+    start: Hashable | None,
+    kind: int,
+    gamma: float,
     first_visit: bool,
     alpha: Schedule,
     weighted: bool,
     target: Policy | None,
-    max_steps: int,
-    start: Hashable | None,
-    progress: bool,
-    name: str,
-) -> tuple[_Tables, int, int]:
-    """The compiled path: chunks of episodes between checkpoints, in a numba kernel."""
+) -> tuple[Model, Behaviour, MCSettings]:
+    """The compiled path's model, behaviour and update settings."""
     km = KernelMDP.of(mdp, gamma)
     S, A = mdp.n_states, mdp.n_actions
-    tables = _Tables(S, A, max_steps)
     pi = writable(policy.probs if policy_kind == FIXED_POLICY else np.zeros((S, A)), np.float64)
     tgt = writable(target.probs.ravel() if target is not None else np.zeros(S * A), np.float64)
     initial = writable(start_state(mdp, start), np.float64)
-    eps_p, alpha_p = epsilon.params, alpha.params
-    steps = truncated = 0
-    with progress_bar(progress, len(returns), name) as advance:
-        for k0, k1 in rec.chunks():
-            st, tr = _mc_chunk(
-                km.indptr,
-                km.next_states,
-                km.probs,
-                km.rewards,
-                km.terminal,
-                km.mask,
-                initial,
-                gamma,
-                kind,
-                policy_kind,
-                pi,
-                tables.q,
-                eps_p,
-                exploring_starts,
-                first_visit,
-                alpha_p,
-                weighted,
-                tgt,
-                tables.nq,
-                tables.cq,
-                tables.v,
-                tables.nv,
-                tables.cv,
-                rng,
-                k0,
-                k1,
-                returns,
-                tables.work_i,
-                tables.work_f,
-                tables.work_b,
-                tables.mark_q,
-                tables.mark_v,
-                eps_by_state,
-            )
-            steps += st
-            truncated += tr
-            rec.record(tables.q, tables.v)
-            advance(k1 - k0)
-    return tables, steps, truncated
+    model = Model(
+        km.indptr, km.next_states, km.probs, km.rewards, km.terminal, initial, km.mask
+    )  # fmt: skip
+    behaviour = Behaviour(policy_kind, pi, epsilon.params, eps_by_state, exploring_starts)
+    return model, behaviour, MCSettings(gamma, kind, first_visit, alpha.params, weighted, tgt)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """A compiled Monte Carlo run, set up but not run (what :func:`seed_study` runs)."""
+
+    algorithm: str
+    mdp: FiniteMDP
+    model: Model
+    behaviour: Behaviour
+    settings: MCSettings
+    episodes: int
+    max_steps: int
+    keeps_v: bool
+
+
+class _Planned(Exception):  # noqa: N818  (not an error: carries the plan out of a learner)
+    """Raised by a learner called under :func:`planned_run` instead of running."""
+
+    def __init__(self, plan: _Plan) -> None:
+        super().__init__(plan.algorithm)
+        self.plan = plan
+
+
+_PLAN: contextvars.ContextVar[bool] = contextvars.ContextVar("_PLAN", default=False)
+
+
+def planned_run(learner: Callable[..., Any], problem: Any, **kwargs: Any) -> _Plan:
+    """The compiled run a Monte Carlo learner call would make, checked but not run."""
+    token = _PLAN.set(True)
+    try:
+        learner(problem, **kwargs)
+    except _Planned as planned:
+        return planned.plan
+    finally:
+        _PLAN.reset(token)
+    raise InvalidArgumentError("seed_study runs Monte Carlo learners on a FiniteMDP only")
+
+
+def many_mc_runs(
+    plan: _Plan, rngs: NDArray[np.uint64], workers_limited: bool = False
+) -> tuple[_MCRun, NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """Run ``plan`` once per RNG state in one parallel compiled call.
+
+    Returns the stacked runs, (R, 2) steps and truncated episodes, and the (R, S, A) Q
+    and (R, S) V of the results.
+    """
+    mdp = plan.mdp
+    S, A, R = mdp.n_states, mdp.n_actions, rngs.shape[0]
+    runs = _mc_run(S, A, plan.max_steps, plan.episodes, n_runs=R)
+    counts = _many_mc_runs(
+        plan.model, plan.behaviour, plan.settings, _stack(runs), rngs, plan.episodes
+    )
+    mask = np.asarray(mdp.action_mask, dtype=bool)
+    terminal = np.asarray(mdp.terminal, dtype=bool)
+    qv = [_q_and_v(runs.q[r], runs.tables.v[r], mask, terminal, plan.keeps_v) for r in range(R)]
+    return runs, counts, np.stack([q for q, _ in qv]), np.stack([v for _, v in qv])
 
 
 # =============================================================================== general path
@@ -606,29 +533,23 @@ def _run_env(
     env: Any,
     mdp: FiniteMDP | None,
     rec: Recorder,
-    returns: NDArray[np.float64],
     rng: NDArray[np.uint64],
     gen: np.random.Generator,
     *,
-    kind: int,
-    gamma: float,
+    episodes: int,
     policy: Any,
-    policy_kind: int,
-    epsilon: Schedule,
-    exploring_starts: bool,
-    eps_by_state: bool,
-    first_visit: bool,
-    alpha: Schedule,
-    weighted: bool,
+    behaviour: Behaviour,
+    settings: MCSettings,
     target: Policy | None,
     max_steps: int,
     progress: bool,
     name: str,
-) -> tuple[_Tables, int, int, tuple[Hashable, ...]]:
+) -> tuple[_MCRun, int, int, tuple[Hashable, ...]]:
     """The general path: a plain Python loop over ``env.reset`` / ``env.step``.
 
-    It calls the compiled action choice and :func:`mc_episode_update` with the same RNG
-    state as the fast path, so on a deterministic MDP both give the same numbers.
+    It chooses actions with the compiled :func:`choose_action` and updates with
+    :func:`mc_episode_update`, with the same RNG state as the fast path, so on a
+    deterministic MDP both give the same numbers.
     """
     A = int(env.action_space.n)
     own_model = False
@@ -644,114 +565,76 @@ def _run_env(
     else:
         index = StateIndex.for_env(env)
         mask = np.ones((max(len(index), 1), A), dtype=np.bool_)
-    if exploring_starts and getattr(getattr(env, "unwrapped", env), "mdp", None) is None:
+    if behaviour.exploring_starts and getattr(getattr(env, "unwrapped", env), "mdp", None) is None:
         raise InvalidArgumentError(
             "exploring starts need an env that can start in a chosen state: a FiniteMDP or "
             "policylab's MDPEnv (Gymnasium envs in general cannot be reset to a state)"
         )
     S0 = max(len(index), 1)
-    tables = _Tables(S0, A, max_steps)
+    run = _mc_run(S0, A, max_steps, episodes)
     pi_table = (
         writable(policy.probs, np.float64)
-        if (policy_kind == FIXED_POLICY and hasattr(policy, "probs"))
+        if (behaviour.kind == FIXED_POLICY and hasattr(policy, "probs"))
         else None
     )
-    tgt_flat = (
-        writable(target.probs.ravel(), np.float64) if target is not None else np.zeros(S0 * A)
-    )
-    buf_s, buf_a, keys, buf_r, buf_b, flags_q, flags_v = tables.buffers()
-    eps_p, alpha_p = epsilon.params, alpha.params
+    tgt = writable(target.probs.ravel(), np.float64) if target is not None else np.zeros(S0 * A)
+    settings = settings._replace(target=tgt)
+    no_row = np.zeros(A)
+    kind, by_state, eps_params = behaviour.kind, behaviour.by_state, behaviour.epsilon
     seen = np.zeros(S0, dtype=bool)
     terminal_ = writable(mdp.terminal, np.bool_) if mdp is not None else None
     env_seed: int | None = int(gen.integers(2**31 - 1))
     steps = truncated = 0
-    with progress_bar(progress, len(returns), name) as advance:
+    with progress_bar(progress, episodes, name) as advance:
         for k0, k1 in rec.chunks():
             for k in range(k0, k1):
-                eps = schedule_value(eps_p, k + 1.0)
                 options = None
-                if exploring_starts:
+                if behaviour.exploring_starts:
                     assert terminal_ is not None and mdp is not None
-                    s_start = exploring_start_state(terminal_, rng)
-                    options = {"state": mdp.states[s_start]}
+                    options = {"state": mdp.states[exploring_start_state(terminal_, rng)]}
                 obs, _ = env.reset(seed=env_seed, options=options)
                 env_seed = None
-                t = 0
-                while True:
+                eps = schedule_value(behaviour.epsilon, k + 1.0)
+                T, cut = 0, False
+                while True:  # one episode: S_0, A_0, R_1, ..., S_T
                     s = index(obs)
                     if s >= len(seen):
-                        tables.grow(s + 1)
-                        seen = _grow_flat(seen, tables.q.shape[0])
-                        mask = grow_rows(mask, tables.q.shape[0], fill=True)
+                        run = _grow(run, s + 1)
+                        seen = _grow_flat(seen, run.q.shape[0])
+                        mask = grow_rows(mask, run.q.shape[0], fill=True)
                     seen[s] = True
-                    buf_s[t] = s
-                    if t >= max_steps:
-                        t = -t
+                    run.buf.s[T] = s
+                    if max_steps <= T:
+                        cut = True
                         break
-                    if exploring_starts and t == 0:
-                        a = uniform_action(mask[s], rng)
-                        b = 1.0 / mask[s].sum()
-                    elif policy_kind == FIXED_POLICY:
-                        row = pi_table[s] if pi_table is not None else _policy_row(policy, obs, A)
-                        a = sample_action(row, rng)
-                        b = float(row[a])
+                    if pi_table is not None:
+                        pi_row = pi_table[s]
+                    elif behaviour.kind == FIXED_POLICY:
+                        pi_row = _policy_row(policy, obs, A)
                     else:
-                        e = (
-                            min(1.0, schedule_value(eps_p, tables.nv[s] + 1.0))
-                            if eps_by_state
-                            else eps
-                        )
-                        a = epsilon_greedy_action(tables.q[s], mask[s], e, rng)
-                        b = epsilon_greedy_prob(tables.q[s], mask[s], e, a)
+                        pi_row = no_row
+                    e = behaviour_epsilon(by_state, eps_params, eps, run.tables.nv[s])
+                    explore = behaviour.exploring_starts and T == 0
+                    a, b = choose_action(kind, explore, pi_row, run.q[s], mask[s], e, rng)
                     obs, r, term, trunc, _ = env.step(a)
-                    buf_a[t], buf_r[t], buf_b[t] = a, float(r), b
-                    t += 1
-                    if term:
+                    run.buf.a[T], run.buf.r[T], run.buf.b[T] = a, float(r), b
+                    T += 1
+                    if term or trunc:
+                        cut = bool(trunc) and not term
                         break
-                    if trunc:
-                        t = -t
-                        break
-                T = t
-                if T < 0:
-                    truncated += 1
-                    steps += -T
-                    returns[k] = episode_return(buf_r, -T, gamma)
-                    continue
                 steps += T
-                returns[k] = episode_return(buf_r, T, gamma)
-                mc_episode_update(
-                    kind,
-                    tables.q.ravel(),
-                    tables.nq,
-                    tables.cq,
-                    tables.v,
-                    tables.nv,
-                    tables.cv,
-                    A,
-                    buf_s,
-                    buf_a,
-                    buf_r,
-                    buf_b,
-                    T,
-                    gamma,
-                    first_visit,
-                    alpha_p,
-                    weighted,
-                    tgt_flat,
-                    mask,
-                    keys,
-                    flags_q,
-                    flags_v,
-                    tables.mark_q,
-                    tables.mark_v,
-                    k + 1,
-                )
+                run.lengths[k] = T
+                run.returns[k] = episode_return(run.buf.r, T, settings.gamma)
+                if cut:
+                    truncated += 1
+                    continue
+                mc_episode_update(settings, run.tables, run.buf, run.scratch, mask, T, k + 1)
             n = len(index)
             # an env over its own FiniteMDP can reach every state: score them all, as the
             # compiled path does; with an outside model score only the states seen so far
-            rec.record(tables.q[:n], tables.v[:n], None if own_model else seen[:n])
+            rec.record(run.q[:n], run.tables.v[:n], None if own_model else seen[:n])
             advance(k1 - k0)
-    return tables, steps, truncated, index.labels
+    return run, steps, truncated, index.labels
 
 
 def _policy_row(policy: Any, obs: Any, A: int) -> NDArray[np.float64]:
@@ -1063,7 +946,7 @@ def mc_off_policy(
     if epsilon is not None:
         policy_kind = EPSILON_GREEDY
         eps = as_schedule(epsilon, Schedule.inverse(), "epsilon").check_range(0.0, 1.0, "epsilon")
-        if eps.kind == 0 and eps.a == 0.0:
+        if eps.kind == CONSTANT and eps.a == 0.0:
             raise InvalidArgumentError("an epsilon-greedy behaviour needs epsilon > 0 (coverage)")
     else:
         gen_policy, _ = _fixed_policy(problem, behavior, model, "mc_off_policy behavior")

@@ -37,6 +37,10 @@ class Option:
         default: The value when the option is not given (None: the learner's default).
         value_if_set: For a flag: the keyword's value when the flag is given (``False``
             for ``--every-visit`` setting ``first_visit``); default True.
+        annotation: The learner parameter's type as written in its signature
+            (``"int"``); empty where the learner is written by hand.
+        value: The learner parameter's default as written in its signature (``"4"``).
+        doc: The learner's ``Args:`` text for the parameter (default: ``help``).
     """
 
     flag: str
@@ -45,6 +49,9 @@ class Option:
     help: str
     default: Any = None
     value_if_set: Any = True
+    annotation: str = ""
+    value: str = ""
+    doc: str = ""
 
 
 @dataclass(frozen=True)

@@ -51,7 +51,7 @@ class LearnResult:
             ``"q*"``, ``"v*"``), or None without a known model.
         truncated: Episodes cut by the step limit (not used for Monte Carlo updates).
         episode_lengths: (episodes,) the steps of every episode, or None where the
-            learner does not keep them (Monte Carlo).
+            learner does not keep them.
         first_actions: (episodes,) the index of A_0 of every episode (one-step TD
             control: Figure 6.5 counts the "left" actions in A), else None.
         params: The settings of the run (for the record and for displays).

@@ -68,11 +68,11 @@ def schedule_value(params: NDArray[np.float64], n: float) -> float:  # pragma: n
     a, b, c = params[1], params[2], params[3]
     if n < 1.0:
         n = 1.0
-    if kind == 0:
+    if kind == CONSTANT:
         return float(a)
-    if kind == 1:
+    if kind == INVERSE:
         return float(max(a / n**b, c))
-    if kind == 2:
+    if kind == EXPONENTIAL:
         return float(max(a * b ** (n - 1.0), c))
     frac = (n - 1.0) / b
     if frac > 1.0:

@@ -25,9 +25,11 @@ Example::
 
 from __future__ import annotations
 
+import contextlib
+import inspect
 import time
-from collections.abc import Hashable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Hashable, Iterator, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -47,10 +49,9 @@ from policylab.tabular.common import (
     env_name,
     is_finite_mdp,
     progress_bar,
-    run_seeds,
 )
-from policylab.tabular.kernels import KernelMDP, rng_states
-from policylab.tabular.registry import Option, register_algorithm
+from policylab.tabular.kernels import KernelMDP, rng_states, writable
+from policylab.tabular.registry import Option, list_algorithms, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule
 from policylab.tabular.truth import GroundTruth, greedy_probs
@@ -112,7 +113,7 @@ def _resolve(problem: Any, model: FiniteMDP | None) -> _Problem:
             None,
             fm.n_states,
             fm.n_actions,
-            np.ascontiguousarray(fm.action_mask, dtype=np.bool_),
+            writable(fm.action_mask, np.bool_),
             fm.states,
             fm.actions,
             np.asarray(fm.terminal, dtype=bool),
@@ -156,7 +157,7 @@ def _resolve(problem: Any, model: FiniteMDP | None) -> _Problem:
             index,
             S,
             A,
-            np.ascontiguousarray(mdp.action_mask, dtype=np.bool_),
+            writable(mdp.action_mask, np.bool_),
             mdp.states,
             mdp.actions,
             np.asarray(mdp.terminal, dtype=bool),
@@ -185,14 +186,14 @@ def _policy_table(
     if policy is None:
         if P.mdp is not None:
             pol = Policy.uniform(P.mdp)
-            return np.ascontiguousarray(pol.probs), pol
+            return writable(pol.probs, np.float64), pol
         return np.full((P.n_states, P.n_actions), 1.0 / P.n_actions), None
     if isinstance(policy, Policy):
         if P.mdp is not None and (policy.states != P.mdp.states or policy.actions != P.mdp.actions):
             raise InvalidPolicyError(
                 f"the policy's states/actions do not match the problem {P.name!r}"
             )
-        return np.ascontiguousarray(policy.probs, dtype=np.float64), policy
+        return writable(policy.probs, np.float64), policy
     try:
         table = np.asarray(policy, dtype=np.float64)
     except (TypeError, ValueError):
@@ -202,7 +203,7 @@ def _policy_table(
         ) from None
     if P.mdp is not None:
         pol = Policy.from_array(P.mdp, table)
-        return np.ascontiguousarray(pol.probs), pol
+        return writable(pol.probs, np.float64), pol
     if (
         table.shape != (P.n_states, P.n_actions)
         or np.any(table < 0)
@@ -212,10 +213,19 @@ def _policy_table(
             f"policy must be an ({P.n_states}, {P.n_actions}) array whose rows sum to 1; "
             f"got shape {table.shape}"
         )
-    return np.ascontiguousarray(table), None
+    return writable(table, np.float64), None
 
 
 # =============================================================================== one run
+_FAMILIES = {
+    "td0": tdk.TD0,
+    "one_step": tdk.ONE_STEP,
+    "n_step": tdk.N_STEP,
+    "lambda": tdk.LAMBDA,
+    "dyna": tdk.DYNA,
+}
+
+
 @dataclass(frozen=True)
 class _Algo:
     """Which kernel a learner runs, with its fixed settings."""
@@ -223,11 +233,68 @@ class _Algo:
     name: str
     family: Literal["td0", "one_step", "n_step", "lambda", "dyna"]
     control: bool
-    rule: int = 0
+    rule: int = tdk.SARSA
     n: int = 1
     lam: float = 0.0
     trace: int = tdk.TRACE_ACCUMULATING
     planning: int = 0
+
+    def settings(
+        self, gamma: float, alpha: Schedule, epsilon: Schedule, max_steps: int
+    ) -> tdk.Settings:
+        """The kernel's :class:`~policylab.tabular.td_kernels.Settings` of one run."""
+        return tdk.Settings(
+            float(gamma),
+            alpha.params,
+            epsilon.params,
+            int(max_steps),
+            self.rule,
+            self.n,
+            float(self.lam),
+            self.trace,
+            self.planning,
+            self.control,
+        )
+
+
+def _tables(
+    algo: _Algo, P: _Problem, pi: NDArray[np.float64], init: float, n_runs: int | None = None
+) -> tdk.Tables:
+    """Fresh tables of one run (``n_runs`` None) or of ``n_runs`` runs (leading run axis).
+
+    The table learned starts at ``init`` (0 on terminal states); for anything but Double
+    Q-learning ``q2`` and ``qb`` are the learned table itself.
+    """
+    S, A = P.n_states, P.n_actions
+    lead = () if n_runs is None else (n_runs,)
+    cols = A if algo.control else 1
+    w = np.full((*lead, S, cols), float(init))
+    w[..., P.terminal, :] = 0.0
+    q2 = qb = w
+    if algo.rule == tdk.DOUBLE_Q:
+        q2 = w.copy()
+        qb = w + q2  # the behaviour's Q1 + Q2, kept up to date by the kernel
+    dyna = algo.family == "dyna"
+    return tdk.Tables(
+        w,
+        q2,
+        qb,
+        np.zeros((*lead, S, cols), dtype=np.int64),
+        pi,
+        np.full((*lead, S, A) if dyna else (*lead, 0, 0), -1, dtype=np.int64),
+        np.zeros((*lead, S, A) if dyna else (*lead, 0, 0)),
+        np.zeros((*lead, S * A + 1 if dyna else 1), dtype=np.int64),
+    )
+
+
+def _episodes(episodes: int, n_runs: int | None = None) -> tdk.Episodes:
+    """Empty per-episode records of one run (or of ``n_runs`` runs)."""
+    lead = () if n_runs is None else (n_runs,)
+    return tdk.Episodes(
+        np.zeros((*lead, episodes)),
+        np.zeros((*lead, episodes), dtype=np.int64),
+        np.full((*lead, episodes), -1, dtype=np.int64),
+    )
 
 
 @dataclass
@@ -236,25 +303,14 @@ class _Run:
 
     algo: _Algo
     P: _Problem
-    pi: NDArray[np.float64]
     gamma: float
-    alpha: Schedule
-    epsilon: Schedule
     max_steps: int
     rng: NDArray[np.uint64]
     env: Any
-    model: tuple[Any, ...]
-    w: NDArray[np.float64]
-    episodes: int
-    q2: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
-    qb: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
-    counts: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    returns: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    lengths: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    first_actions: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    model_next: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 0), dtype=np.int64))
-    model_reward: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
-    seen: NDArray[np.int64] = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
+    model: tdk.Model
+    settings: tdk.Settings
+    tables: tdk.Tables
+    out: tdk.Episodes
 
     @classmethod
     def start(
@@ -272,150 +328,44 @@ class _Run:
         episodes: int,
         init: float,
     ) -> _Run:
-        S, A = P.n_states, P.n_actions
-        cols = A if algo.control else 1
-        w = np.full((S, cols), float(init))
-        w[P.terminal] = 0.0
         if P.env is None:  # compiled path: the kernel samples the model's arrays
             assert P.mdp is not None  # the compiled path always has a model
             env: Any = None
-            model = tdk.model_tuple(KernelMDP.of(P.mdp, gamma))
+            model = tdk.model_tuple(KernelMDP.of(P.mdp, gamma), P.mask)
         else:  # general path: the kernel steps the Gymnasium env
             assert P.index is not None  # the general path always has an index
             env = GymStepper(P.env, P.index, env_seed)
-            model = tdk.model_tuple(None)
-        run = cls(algo, P, pi, gamma, alpha, epsilon, max_steps, rng, env, model, w, episodes)
-        run.counts = np.zeros((S, cols), dtype=np.int64)
-        run.returns = np.zeros(episodes)
-        run.lengths = np.zeros(episodes, dtype=np.int64)
-        run.first_actions = np.full(episodes, -1, dtype=np.int64)
-        if algo.rule == tdk.DOUBLE_Q:
-            run.q2 = w.copy()
-            run.qb = run.w + run.q2  # the behaviour's Q1 + Q2, kept up to date by the kernel
-        if algo.family == "dyna":
-            run.model_next = np.full((S, A), -1, dtype=np.int64)
-            run.model_reward = np.zeros((S, A))
-            run.seen = np.zeros(S * A + 1, dtype=np.int64)
-        return run
+            model = tdk.model_tuple(None, P.mask)
+        return cls(
+            algo,
+            P,
+            gamma,
+            max_steps,
+            rng,
+            env,
+            model,
+            algo.settings(gamma, alpha, epsilon, max_steps),
+            _tables(algo, P, pi, init),
+            _episodes(episodes),
+        )
 
     def __call__(self, k0: int, k1: int) -> int:
         """Run episodes k0 .. k1 - 1; return the environment steps taken."""
-        a, P = self.algo, self.P
-        compiled = P.env is None
+        family = _FAMILIES[self.algo.family]
+        args = (self.env, self.model, self.tables, self.settings, self.out, self.rng, k0, k1)
+        if self.env is None:
+            return int(tdk.run_kernel(family, *args))
+        return int(tdk.KERNELS[family].py_func(*args))  # the same source, as Python
 
-        def kernel(fn: Any) -> Any:
-            return fn if compiled else fn.py_func
+    @property
+    def w(self) -> NDArray[np.float64]:
+        """The table learned (V as (S, 1), or Q; Q1 for Double Q)."""
+        return self.tables.w  # type: ignore[no-any-return]
 
-        ap, ep = self.alpha.params, self.epsilon.params
-        if a.family == "td0":
-            return int(
-                kernel(tdk.td0_kernel)(
-                    self.env,
-                    self.model,
-                    self.pi,
-                    self.w[:, 0],
-                    k0,
-                    k1,
-                    self.gamma,
-                    ap,
-                    self.max_steps,
-                    self.rng,
-                    self.counts[:, 0],
-                    self.returns,
-                    self.lengths,
-                )
-            )
-        if a.family == "one_step":
-            double = a.rule == tdk.DOUBLE_Q
-            return int(
-                kernel(tdk.one_step_control_kernel)(
-                    self.env,
-                    self.model,
-                    P.mask,
-                    self.w,
-                    self.q2 if double else self.w,
-                    self.qb if double else self.w,
-                    a.rule,
-                    k0,
-                    k1,
-                    self.gamma,
-                    ap,
-                    ep,
-                    self.max_steps,
-                    self.rng,
-                    self.counts,
-                    self.returns,
-                    self.lengths,
-                    self.first_actions,
-                )
-            )
-        if a.family == "n_step":
-            return int(
-                kernel(tdk.n_step_kernel)(
-                    self.env,
-                    self.model,
-                    P.mask,
-                    self.pi,
-                    self.w,
-                    a.control,
-                    a.n,
-                    k0,
-                    k1,
-                    self.gamma,
-                    ap,
-                    ep,
-                    self.max_steps,
-                    self.rng,
-                    self.counts,
-                    self.returns,
-                    self.lengths,
-                )
-            )
-        if a.family == "lambda":
-            return int(
-                kernel(tdk.lambda_kernel)(
-                    self.env,
-                    self.model,
-                    P.mask,
-                    self.pi,
-                    self.w,
-                    a.control,
-                    a.lam,
-                    a.trace,
-                    k0,
-                    k1,
-                    self.gamma,
-                    ap,
-                    ep,
-                    self.max_steps,
-                    self.rng,
-                    self.counts,
-                    self.returns,
-                    self.lengths,
-                )
-            )
-        return int(
-            kernel(tdk.dyna_q_kernel)(
-                self.env,
-                self.model,
-                P.mask,
-                self.w,
-                a.planning,
-                k0,
-                k1,
-                self.gamma,
-                ap,
-                ep,
-                self.max_steps,
-                self.rng,
-                self.counts,
-                self.returns,
-                self.lengths,
-                self.model_next,
-                self.model_reward,
-                self.seen,
-            )
-        )
+    @property
+    def q2(self) -> NDArray[np.float64]:
+        """Q2 of Double Q-learning (else the learned table itself)."""
+        return self.tables.q2  # type: ignore[no-any-return]
 
     @property
     def q(self) -> NDArray[np.float64]:
@@ -538,7 +488,8 @@ def _learn(
             advance(k1 - k0)
     seconds = time.perf_counter() - t0
     _warn_if_diverged(algo, run, a)
-    counts = run.counts if algo.control else np.repeat(run.counts, P.n_actions, axis=1) * P.mask
+    counts = run.tables.counts
+    counts = counts if algo.control else np.repeat(counts, P.n_actions, axis=1) * P.mask
     pol = greedy_probs(run.q, P.mask) if algo.control else pi.copy()
     return LearnResult(
         algorithm=algo.name,
@@ -554,10 +505,10 @@ def _learn(
         episodes=episodes,
         steps=int(steps),
         seconds=seconds,
-        episode_returns=run.returns,
-        truncated=int(np.sum(run.lengths >= max_steps)),
-        episode_lengths=run.lengths,
-        first_actions=run.first_actions if algo.family == "one_step" else None,
+        episode_returns=run.out.returns,
+        truncated=int(np.sum(run.out.lengths >= max_steps)),
+        episode_lengths=run.out.lengths,
+        first_actions=run.out.first_actions if algo.family == "one_step" else None,
         params={
             **(params or {}),
             "alpha": str(a),
@@ -611,8 +562,9 @@ class SeedRuns:
         problem: The problem's name.
         seeds: Number of runs R.
         returns: (R, episodes) the return G_0 of every episode of every run.
-        lengths: (R, episodes) the steps of every episode.
-        q: (R, S, A) the final Q of each run (zeros for prediction).
+        lengths: (R, episodes) the steps of every episode (0 where a learner added by
+            hand does not record them).
+        q: (R, S, A) the final Q of each run (as the learner's result gives it).
         v: (R, S) the final V of each run.
         first_actions: (R, episodes) A_0 of every episode (one-step control), else None.
         steps: Environment steps over all runs.
@@ -646,24 +598,28 @@ def seed_study(
     workers: int | None = None,
     **options: Any,
 ) -> SeedRuns:
-    """Run a TD learner ``seeds`` times independently (the many-seed studies of the book).
+    """Run a tabular learner for many seeds independently, in one compiled call.
 
-    A thin layer over :func:`~policylab.tabular.run_seeds`: the seeds of the runs are
-    drawn from ``seed`` (``numpy.random.default_rng(seed).integers(2**63 - 1, size=seeds)``),
-    so run r is exactly ``learner(problem, seed=seeds_r, episodes=episodes, **options)``
-    alone, and the per-run results are stacked into the arrays the book's figures
-    average: every episode's return, length and first action for every run.
+    Run r is exactly ``learner(problem, seed=seeds[r], episodes=episodes, **options)``
+    alone (same returns, lengths, tables, bit for bit), for every registered algorithm
+    (TD and Monte Carlo). ``seeds`` is either the list of
+    seeds, or a number R of runs whose seeds are drawn from ``seed``
+    (``numpy.random.default_rng(seed).integers(2**63 - 1, size=R)``). On a FiniteMDP
+    all runs go in one call of a compiled loop parallel over runs (numba ``prange``:
+    each run has its own tables and its own RNG stream, so the numbers do not depend on
+    the number of threads, see ``numba.set_num_threads``); on a Gymnasium env the runs
+    go one after the other. The per-run results are stacked into the arrays the book's
+    figures average: every episode's return, length and first action of every run.
 
     Args:
-        algorithm: A TD algorithm's registry name (``"sarsa"``, ``"q-learning"``, ...).
-        problem: A FiniteMDP (several runs at once, see :func:`run_seeds`) or a Gymnasium
-            env with discrete observations (runs one after the other).
-        seeds: Number of independent runs, or the list of the runs' seeds (run r is then
-            ``learner(problem, seed=seeds[r], ...)``, and ``seed`` is not used).
-        seed: Seed of the whole study.
+        algorithm: A registered algorithm's name (``"sarsa"``, ``"mc-control"``, ...).
+        problem: A FiniteMDP (one parallel compiled call for the built-in algorithms)
+            or a Gymnasium env with discrete observations (runs one after the other).
+        seeds: The seeds of the runs, or their number.
+        seed: Seed from which the runs' seeds are drawn when ``seeds`` is a number.
         episodes: Episodes per run.
         policy: The policy evaluated (prediction methods).
-        workers: Threads for :func:`run_seeds` (default: the number of CPUs).
+        workers: Most threads to run on (default: numba's, the number of CPUs).
         **options: The learner's own keyword arguments (``alpha``, ``epsilon``, ``n``,
             ``lam``, ``trace``, ``planning_steps``, ``gamma``, ``max_steps``, ``init``, ...).
 
@@ -671,49 +627,434 @@ def seed_study(
         A :class:`SeedRuns`.
     """
     name = normalize_name(algorithm)
-    if name not in _LEARNERS:
+    known = {spec.name: spec for spec in list_algorithms()}
+    if name not in known:
         raise InvalidArgumentError(
-            f"unknown TD algorithm {algorithm!r}{did_you_mean(name, _LEARNERS)}; known: "
-            f"{', '.join(sorted(_LEARNERS))}"
+            f"unknown TD algorithm {algorithm!r} (nor a Monte Carlo one)"
+            f"{did_you_mean(name, known)}; known: {', '.join(sorted(known))}"
         )
-    learner, allowed = _LEARNERS[name]
-    unknown = sorted(set(options) - allowed - _COMMON_OPTIONS)
+    learner = known[name].learner
+    signature = inspect.signature(learner).parameters
+    allowed = {k for k, p in signature.items() if p.kind in _KEYWORDS} - _SET_BY_STUDY
+    unknown = sorted(set(options) - allowed)
     if unknown:
         raise InvalidArgumentError(f"{name}: unknown options {unknown}")
-    control = "epsilon" in allowed
-    if control and policy is not None:
+    takes_policy = "policy" in signature
+    if not takes_policy and policy is not None:
         raise InvalidArgumentError(f"{name} is a control method; it takes no policy")
-    if isinstance(seeds, Sequence):
-        seed_list = [int(check_seed(s, "seeds[]") or 0) for s in seeds]
-        n_runs = check_episodes(len(seed_list), "len(seeds)")
-    else:
-        n_runs = check_episodes(seeds, "seeds")
-        seed_list = [int(x) for x in as_generator(seed).integers(2**63 - 1, size=n_runs)]
+    seed_list = _seed_list(seeds, seed)
     kwargs = dict(options, episodes=episodes, checkpoints=1)
-    if not control:
+    if takes_policy:
         kwargs["policy"] = policy
     t0 = time.perf_counter()
-    if is_finite_mdp(problem):
-        results = run_seeds(learner, problem, seed_list, workers=workers, **kwargs)
-    else:  # an env cannot be shared between threads
+    from policylab.tabular import mc
+
+    batched = name in _ENTRIES or learner in (mc.mc_prediction, mc.mc_control, mc.mc_off_policy)
+    if not is_finite_mdp(problem) or not batched:  # one run at a time (an env, a new learner)
         results = [learner(problem, seed=s, **kwargs) for s in seed_list]
+        first = [r.first_actions for r in results]
+        return SeedRuns(
+            name,
+            results[0].problem,
+            len(seed_list),
+            np.stack([r.episode_returns for r in results]),
+            np.stack([_lengths(r) for r in results]),
+            np.stack([r.q for r in results]),
+            np.stack([r.v if r.v is not None else r.q.max(axis=1) for r in results]),
+            None if any(f is None for f in first) else np.stack(first),  # type: ignore[arg-type]
+            sum(r.steps for r in results),
+            time.perf_counter() - t0,
+        )
+    rngs = np.stack([rng_states(as_generator(s), 1)[0] for s in seed_list])
+    if name not in _ENTRIES:  # Monte Carlo: the learner's own checks, then one call
+        plan = mc.planned_run(learner, problem, **kwargs)
+        with _threads(workers):
+            mc_runs, counts, q, v = mc.many_mc_runs(plan, rngs)
+        return SeedRuns(
+            name,
+            plan.mdp.name,
+            len(seed_list),
+            mc_runs.returns,
+            mc_runs.lengths,
+            q,
+            v,
+            None,
+            int(counts[:, 0].sum()),
+            time.perf_counter() - t0,
+        )
+    defaults = {
+        p.name: p.default
+        for p in inspect.signature(learner).parameters.values()
+        if p.kind is inspect.Parameter.KEYWORD_ONLY
+    }
+    kw = {**defaults, **options}
+    algo, _ = _make_algo(name, {o.param: kw[o.param] for o in _ENTRIES[name].own})
+    P, pi, _, g, a, e, episodes, max_steps = _prepare(
+        algo,
+        problem,
+        policy,
+        model=kw["model"],
+        episodes=episodes,
+        gamma=kw["gamma"],
+        alpha=kw["alpha"],
+        epsilon=kw.get("epsilon"),
+        max_steps=kw["max_steps"],
+    )
+    assert P.mdp is not None  # a FiniteMDP problem
+    R = len(seed_list)
+    tables = _tables(algo, P, pi, kw["init"], n_runs=R)
+    out = _episodes(episodes, R)
+    model = tdk.model_tuple(KernelMDP.of(P.mdp, g), P.mask)
+    settings = algo.settings(g, a, e, max_steps)
+    with _threads(workers):
+        steps = tdk.many_runs(_FAMILIES[algo.family], model, tables, settings, out, rngs, episodes)
     seconds = time.perf_counter() - t0
-    first = [r.first_actions for r in results]
+    runs = [
+        _Run(
+            algo,
+            P,
+            g,
+            max_steps,
+            rngs[r],
+            None,
+            model,
+            settings,
+            tdk.Tables(*(t if t is pi else t[r] for t in tables)),
+            tdk.Episodes(*(o[r] for o in out)),
+        )
+        for r in range(R)
+    ]
+    for run in runs:
+        _warn_if_diverged(algo, run, a)
     return SeedRuns(
         name,
-        results[0].problem,
-        n_runs,
-        np.stack([r.episode_returns for r in results]),
-        np.stack([r.episode_lengths for r in results]),
-        np.stack([r.q for r in results]),
-        np.stack([r.v for r in results]),
-        None if any(f is None for f in first) else np.stack(first),
-        sum(r.steps for r in results),
+        P.name,
+        R,
+        out.returns,
+        out.lengths,
+        np.stack([run.q for run in runs]),
+        np.stack([run.v for run in runs]),
+        out.first_actions if algo.family == "one_step" else None,
+        int(steps.sum()),
         seconds,
     )
 
 
+def _lengths(res: LearnResult) -> NDArray[np.int64]:
+    """A result's episode lengths (zeros where its learner does not record them)."""
+    if res.episode_lengths is None:
+        return np.zeros(len(res.episode_returns), dtype=np.int64)
+    return res.episode_lengths
+
+
+def _seed_list(seeds: int | Sequence[int], seed: Seed) -> list[int]:
+    """The runs' seeds: the list given (each checked), or R seeds drawn from ``seed``."""
+    if isinstance(seeds, int | np.integer) and not isinstance(seeds, bool):
+        n_runs = check_episodes(seeds, "seeds")
+        return [int(x) for x in as_generator(seed).integers(2**63 - 1, size=n_runs)]
+    if isinstance(seeds, str) or not isinstance(seeds, Sequence | np.ndarray):
+        raise InvalidArgumentError(
+            f"seeds must be a number of runs or a sequence of integer seeds; got {seeds!r}"
+        )
+    out = [check_seed(s, f"seeds[{i}]") for i, s in enumerate(seeds)]
+    if not out:
+        raise InvalidArgumentError("seeds must not be empty")
+    if any(s is None for s in out):
+        raise InvalidArgumentError("seeds must be integers (None has no fixed stream)")
+    return [int(s) for s in out if s is not None]
+
+
+@contextlib.contextmanager
+def _threads(workers: int | None) -> Iterator[None]:
+    """Numba's thread count limited to ``workers`` (if given) for the ``with`` block."""
+    if workers is None:
+        yield
+        return
+    import numba
+
+    n = check_count(workers, "workers")
+    before = numba.get_num_threads()
+    numba.set_num_threads(min(n, int(numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
 # =============================================================================== learners
+# =============================================================================== the entries
+#: A learner's keywords that :func:`seed_study` sets itself.
+_SET_BY_STUDY = {"problem", "episodes", "seed", "checkpoints", "progress", "policy"}
+_KEYWORDS = (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+_SCHEDULE = "Schedule | float | str | None"
+
+_ALPHA = Option(
+    "--alpha",
+    "alpha",
+    "schedule",
+    "Step size alpha: a number, or a schedule of each entry's update count "
+    "(1/n, inverse:1,0.6,0.01, exp:0.5,0.999,0.01, linear:0.5,0.01,10000).",
+    annotation=_SCHEDULE,
+    value="0.1",
+    doc="Step size: a number, a :class:`Schedule` of the entry's update count, or a "
+    'schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).',
+)
+_EPSILON = Option(
+    "--epsilon",
+    "epsilon",
+    "schedule",
+    "Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of the "
+    "episode number (1/n, exp:1,0.999,0.01, linear:1,0.01,5000).",
+    annotation=_SCHEDULE,
+    value="0.1",
+    doc="Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of "
+    'the episode number (``"linear:1,0.01,5000"``).',
+)
+_INIT = Option(
+    "--init",
+    "init",
+    "float",
+    "Initial value of every non-terminal entry of the table (high values explore optimistically).",
+    annotation="float",
+    value="0.0",
+    doc="Initial value of every non-terminal entry of the table (optimistic if high; "
+    "V(s) = 0.5 in Example 6.2).",
+)
+_N = Option(
+    "--n",
+    "n",
+    "int",
+    "Number of steps n of the n-step return (n = 1 is one-step TD).",
+    annotation="int",
+    value="4",
+)
+_LAM = Option(
+    "--lambda",
+    "lam",
+    "float",
+    "Trace-decay rate lambda in [0, 1] (0 is one-step TD).",
+    annotation="float",
+    value="0.8",
+)
+_TRACE = Option(
+    "--trace",
+    "trace",
+    "str",
+    "Eligibility trace: accumulating or replacing.",
+    annotation="Trace",
+    value='"accumulating"',
+)
+_PLAN = Option(
+    "--planning-steps",
+    "planning_steps",
+    "int",
+    "Planning updates from the learned model after each real step (0 is Q-learning).",
+    annotation="int",
+    value="5",
+)
+
+
+@dataclass(frozen=True)
+class TDEntry:
+    """One TD learner: everything its public function, the registry and the CLI say.
+
+    The public function (signature and docstring) is generated from it by
+    ``python -m policylab.tabular._generate``; the ``learn`` subcommand and
+    :func:`seed_study` read the registered spec built from it.
+
+    Attributes:
+        name: Registry and command-line name (``"n-step-sarsa"``).
+        function: The public function's name (``"n_step_sarsa"``).
+        family: The episode loop (see :mod:`policylab.tabular.td_kernels`).
+        control: Learns Q (control) rather than V of a given policy (prediction).
+        title: The docstring's first line, with the book section.
+        equation: The update, as the docstring states it.
+        description: One line for ``policylab learn --help``.
+        own: The learner's own options, before the shared ones.
+        rule: The one-step rule (``one_step`` family).
+        default_episodes: Episodes when not given.
+    """
+
+    name: str
+    function: str
+    family: Literal["td0", "one_step", "n_step", "lambda", "dyna"]
+    control: bool
+    title: str
+    equation: str
+    description: str
+    own: tuple[Option, ...] = ()
+    rule: int = tdk.SARSA
+    default_episodes: int = 500
+
+    @property
+    def options(self) -> tuple[Option, ...]:
+        """The command-line options: its own, then alpha, epsilon (control) and init."""
+        return (*self.own, _ALPHA, *((_EPSILON,) if self.control else ()), _INIT)
+
+
+TD_ENTRIES: tuple[TDEntry, ...] = (
+    TDEntry(
+        "td0",
+        "td0",
+        "td0",
+        False,
+        "Tabular TD(0) prediction of v_pi (S&B section 6.1).",
+        "V(S_t) <- V(S_t) + alpha [R_{t+1} + gamma V(S_{t+1}) - V(S_t)] after every step.",
+        "TD(0) prediction of v_pi (S&B 6.1).",
+        default_episodes=100,
+    ),
+    TDEntry(
+        "n-step-td",
+        "n_step_td",
+        "n_step",
+        False,
+        "n-step TD prediction of v_pi (S&B section 7.1).",
+        "V(S_tau) <- V(S_tau) + alpha [G_{tau:tau+n} - V(S_tau)] with the n-step return\n"
+        "G_{tau:tau+n} = R_{tau+1} + gamma R_{tau+2} + ... + gamma^{n-1} R_{tau+n} +\n"
+        "gamma^n V(S_{tau+n}) (no bootstrap past the episode's end). n = 1 is TD(0).",
+        "n-step TD prediction of v_pi (S&B 7.1).",
+        (_N,),
+        default_episodes=100,
+    ),
+    TDEntry(
+        "td-lambda",
+        "td_lambda",
+        "lambda",
+        False,
+        "Tabular TD(lambda) prediction with eligibility traces (S&B section 12.2).",
+        "delta_t = R_{t+1} + gamma V(S_{t+1}) - V(S_t); e(S_t) <- e(S_t) + 1\n"
+        "(accumulating) or 1 (replacing); V <- V + alpha delta_t e; e <- gamma lambda e.\n"
+        "lambda = 0 is TD(0); lambda = 1 (accumulating, offline) approaches Monte Carlo.",
+        "TD(lambda) prediction with eligibility traces (S&B 12.2).",
+        (_LAM, _TRACE),
+        default_episodes=100,
+    ),
+    TDEntry(
+        "sarsa",
+        "sarsa",
+        "one_step",
+        True,
+        "Sarsa, on-policy TD control (S&B section 6.4).",
+        "Q(S, A) <- Q(S, A) + alpha [R + gamma Q(S', A') - Q(S, A)], with A' the\n"
+        "epsilon-greedy action actually taken next.",
+        "Sarsa: on-policy TD control (S&B 6.4).",
+    ),
+    TDEntry(
+        "q-learning",
+        "q_learning",
+        "one_step",
+        True,
+        "Q-learning, off-policy TD control (S&B section 6.5).",
+        "Q(S, A) <- Q(S, A) + alpha [R + gamma max_a Q(S', a) - Q(S, A)].",
+        "Q-learning: off-policy TD control (S&B 6.5).",
+        rule=tdk.Q_LEARNING,
+    ),
+    TDEntry(
+        "expected-sarsa",
+        "expected_sarsa",
+        "one_step",
+        True,
+        "Expected Sarsa (S&B section 6.6).",
+        "Q(S, A) <- Q(S, A) + alpha [R + gamma sum_a pi(a | S') Q(S', a) - Q(S, A)], pi the\n"
+        "epsilon-greedy policy of Q.",
+        "Expected Sarsa (S&B 6.6).",
+        rule=tdk.EXPECTED_SARSA,
+    ),
+    TDEntry(
+        "double-q-learning",
+        "double_q_learning",
+        "one_step",
+        True,
+        "Double Q-learning (S&B section 6.7), which removes the maximisation bias.",
+        "With probability 1/2: Q1(S, A) <- Q1 + alpha [R + gamma Q2(S', argmax_a Q1(S', a))\n"
+        "- Q1(S, A)], else the same with Q1 and Q2 swapped; behaviour epsilon-greedy in\n"
+        "Q1 + Q2. ``result.q`` is (Q1 + Q2) / 2.",
+        "Double Q-learning, no maximisation bias (S&B 6.7).",
+        rule=tdk.DOUBLE_Q,
+    ),
+    TDEntry(
+        "n-step-sarsa",
+        "n_step_sarsa",
+        "n_step",
+        True,
+        "n-step Sarsa (S&B section 7.2).",
+        "Q(S_tau, A_tau) <- Q + alpha [G_{tau:tau+n} - Q(S_tau, A_tau)] with G = R_{tau+1} +\n"
+        "... + gamma^{n-1} R_{tau+n} + gamma^n Q(S_{tau+n}, A_{tau+n}). n = 1 is Sarsa.",
+        "n-step Sarsa (S&B 7.2).",
+        (_N,),
+    ),
+    TDEntry(
+        "sarsa-lambda",
+        "sarsa_lambda",
+        "lambda",
+        True,
+        "Tabular Sarsa(lambda) with eligibility traces (S&B section 12.7).",
+        "delta = R + gamma Q(S', A') - Q(S, A); e(S, A) <- e + 1 (accumulating) or 1\n"
+        "(replacing); Q <- Q + alpha delta e; e <- gamma lambda e. lambda = 0 is Sarsa.",
+        "Sarsa(lambda) with eligibility traces (S&B 12.7).",
+        (_LAM, _TRACE),
+    ),
+    TDEntry(
+        "dyna-q",
+        "dyna_q",
+        "dyna",
+        True,
+        "Tabular Dyna-Q (S&B section 8.2): Q-learning plus planning from a learned model.",
+        "After each real step, Model(S, A) <- (R, S') and ``planning_steps`` Q-learning\n"
+        "updates on pairs drawn uniformly from those seen, with (R, S') from the model (the\n"
+        "last outcome seen: exact on deterministic problems). ``planning_steps = 0`` is\n"
+        "Q-learning.",
+        "Dyna-Q: Q-learning plus planning from a learned model (S&B 8.2).",
+        (_PLAN,),
+    ),
+)
+_ENTRIES = {e.name: e for e in TD_ENTRIES}
+
+
+def _make_algo(name: str, own: dict[str, Any]) -> tuple[_Algo, dict[str, Any]]:
+    """The kernel settings of a TD learner from its own options, checked, and their record."""
+    entry = _ENTRIES[name]
+    fields: dict[str, Any] = {}
+    params: dict[str, Any] = {}
+    if "n" in own:
+        fields["n"] = _check_n(own["n"])
+        params["n"] = fields["n"]
+    if "lam" in own:
+        fields["lam"] = _check_lambda(own["lam"])
+        params["lambda"] = fields["lam"]
+    if "trace" in own:
+        fields["trace"] = _check_trace(own["trace"])
+        params["trace"] = own["trace"]
+    if "planning_steps" in own:
+        fields["planning"] = _check_planning(own["planning_steps"])
+        params["planning_steps"] = fields["planning"]
+    algo = _Algo(name, entry.family, entry.control, rule=entry.rule, **fields)
+    return algo, params
+
+
+def _learn_entry(name: str, args: dict[str, Any]) -> LearnResult:
+    """Run the learner of entry ``name`` with a public function's arguments (its locals)."""
+    entry = _ENTRIES[name]
+    algo, params = _make_algo(name, {o.param: args[o.param] for o in entry.own})
+    shared = {k: v for k, v in args.items() if k in _SHARED}
+    return _learn(algo, args["problem"], args.get("policy"), params=params, **shared)
+
+
+#: The keywords of :func:`_learn` every public TD learner passes on.
+_SHARED = (
+    "episodes",
+    "seed",
+    "gamma",
+    "alpha",
+    "epsilon",
+    "init",
+    "checkpoints",
+    "max_steps",
+    "model",
+    "progress",
+)
+
+
 def _check_n(n: Any) -> int:
     return check_count(n, "n (the number of steps)")
 
@@ -731,6 +1072,12 @@ def _check_trace(trace: Any) -> int:
 
 def _check_planning(k: Any) -> int:
     return check_count(k, "planning_steps", minimum=0)
+
+
+# ======================================================================= the public learners
+# generated by `python -m policylab.tabular._generate` from TD_ENTRIES: edit the entries
+# (or the generator) and run it again; tests/tabular/test_registry.py checks it is current.
+# <generated learners>
 
 
 def td0(
@@ -753,38 +1100,26 @@ def td0(
 
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
-        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array
-            (default: the equiprobable random policy).
+        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
+            the equiprobable random policy).
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the state's update count or
-            a schedule string (``"1/n"``, ``"exp:0.5,0.999,0.01"``).
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
         gamma: Discount rate (default: the problem's).
         seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal V(s) (0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against v_pi.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
         max_steps: Step limit of an episode (then truncated: bootstrap).
         model: The FiniteMDP behind an env, for the error curve.
         progress: Show a progress bar.
 
     Returns:
-        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi
-        where the model is known. TD(0) learns V only: ``q`` is its one-step lookahead
-        through the model (zeros without one) and ``policy`` is the policy evaluated.
+        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
+        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
+        model (zeros without one) and ``policy`` is the policy evaluated.
     """
-    return _learn(
-        _Algo("td0", "td0", False),
-        problem,
-        policy,
-        episodes=episodes,
-        seed=seed,
-        gamma=gamma,
-        alpha=alpha,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-    )
+    return _learn_entry("td0", locals())
 
 
 def n_step_td(
@@ -807,23 +1142,30 @@ def n_step_td(
     V(S_tau) <- V(S_tau) + alpha [G_{tau:tau+n} - V(S_tau)] with the n-step return
     G_{tau:tau+n} = R_{tau+1} + gamma R_{tau+2} + ... + gamma^{n-1} R_{tau+n} +
     gamma^n V(S_{tau+n}) (no bootstrap past the episode's end). n = 1 is TD(0).
-    Arguments as :func:`td0`, plus ``n``.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
+            the equiprobable random policy).
+        n: Number of steps n of the n-step return (n = 1 is one-step TD).
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
+        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
+        model (zeros without one) and ``policy`` is the policy evaluated.
     """
-    return _learn(
-        _Algo("n-step-td", "n_step", False, n=_check_n(n)),
-        problem,
-        policy,
-        episodes=episodes,
-        seed=seed,
-        gamma=gamma,
-        alpha=alpha,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params={"n": int(n)},
-    )
+    return _learn_entry("n-step-td", locals())
 
 
 def td_lambda(
@@ -847,79 +1189,31 @@ def td_lambda(
     delta_t = R_{t+1} + gamma V(S_{t+1}) - V(S_t); e(S_t) <- e(S_t) + 1
     (accumulating) or 1 (replacing); V <- V + alpha delta_t e; e <- gamma lambda e.
     lambda = 0 is TD(0); lambda = 1 (accumulating, offline) approaches Monte Carlo.
-    Arguments as :func:`td0`, plus ``lam`` and ``trace``.
-    """
-    return _learn(
-        _Algo("td-lambda", "lambda", False, lam=_check_lambda(lam), trace=_check_trace(trace)),
-        problem,
-        policy,
-        episodes=episodes,
-        seed=seed,
-        gamma=gamma,
-        alpha=alpha,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params={"lambda": float(lam), "trace": trace},
-    )
 
-
-def _control(
-    algo: _Algo,
-    problem: Any,
-    *,
-    episodes: int,
-    alpha: Any,
-    epsilon: Any,
-    gamma: float | None,
-    seed: Seed,
-    init: float,
-    checkpoints: int,
-    max_steps: int,
-    model: FiniteMDP | None,
-    progress: bool,
-    params: dict[str, Any] | None = None,
-) -> LearnResult:
-    return _learn(
-        algo,
-        problem,
-        None,
-        episodes=episodes,
-        seed=seed,
-        gamma=gamma,
-        alpha=alpha,
-        epsilon=epsilon,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params=params,
-    )
-
-
-_CONTROL_ARGS = """
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
+            the equiprobable random policy).
+        lam: Trace-decay rate lambda in [0, 1] (0 is one-step TD).
+        trace: Eligibility trace: accumulating or replacing.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the pair's update count, or a
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
             schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a
-            schedule of the episode number (``"linear:1,0.01,5000"``).
         gamma: Discount rate (default: the problem's).
         seed: Seed or Generator; same seed, same result.
-        init: Initial Q(s, a) of the non-terminal states (optimistic if high).
-        checkpoints: About how many points of the error curve against q*.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
         max_steps: Step limit of an episode (then truncated: bootstrap).
         model: The FiniteMDP behind an env, for the error curve.
         progress: Show a progress bar.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the
-        error against q* where the model is known.
-"""
+        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
+        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
+        model (zeros without one) and ``policy`` is the policy evaluated.
+    """
+    return _learn_entry("td-lambda", locals())
 
 
 def sarsa(
@@ -940,21 +1234,28 @@ def sarsa(
 
     Q(S, A) <- Q(S, A) + alpha [R + gamma Q(S', A') - Q(S, A)], with A' the
     epsilon-greedy action actually taken next.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _Algo("sarsa", "one_step", True, rule=tdk.SARSA),
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-    )
+    return _learn_entry("sarsa", locals())
 
 
 def q_learning(
@@ -974,21 +1275,28 @@ def q_learning(
     """Q-learning, off-policy TD control (S&B section 6.5).
 
     Q(S, A) <- Q(S, A) + alpha [R + gamma max_a Q(S', a) - Q(S, A)].
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _Algo("q-learning", "one_step", True, rule=tdk.Q_LEARNING),
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-    )
+    return _learn_entry("q-learning", locals())
 
 
 def expected_sarsa(
@@ -1009,21 +1317,28 @@ def expected_sarsa(
 
     Q(S, A) <- Q(S, A) + alpha [R + gamma sum_a pi(a | S') Q(S', a) - Q(S, A)], pi the
     epsilon-greedy policy of Q.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _Algo("expected-sarsa", "one_step", True, rule=tdk.EXPECTED_SARSA),
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-    )
+    return _learn_entry("expected-sarsa", locals())
 
 
 def double_q_learning(
@@ -1045,21 +1360,28 @@ def double_q_learning(
     With probability 1/2: Q1(S, A) <- Q1 + alpha [R + gamma Q2(S', argmax_a Q1(S', a))
     - Q1(S, A)], else the same with Q1 and Q2 swapped; behaviour epsilon-greedy in
     Q1 + Q2. ``result.q`` is (Q1 + Q2) / 2.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _Algo("double-q-learning", "one_step", True, rule=tdk.DOUBLE_Q),
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-    )
+    return _learn_entry("double-q-learning", locals())
 
 
 def n_step_sarsa(
@@ -1081,22 +1403,29 @@ def n_step_sarsa(
 
     Q(S_tau, A_tau) <- Q + alpha [G_{tau:tau+n} - Q(S_tau, A_tau)] with G = R_{tau+1} +
     ... + gamma^{n-1} R_{tau+n} + gamma^n Q(S_{tau+n}, A_{tau+n}). n = 1 is Sarsa.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        n: Number of steps n of the n-step return (n = 1 is one-step TD).
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _Algo("n-step-sarsa", "n_step", True, n=_check_n(n)),
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params={"n": int(n)},
-    )
+    return _learn_entry("n-step-sarsa", locals())
 
 
 def sarsa_lambda(
@@ -1119,22 +1448,30 @@ def sarsa_lambda(
 
     delta = R + gamma Q(S', A') - Q(S, A); e(S, A) <- e + 1 (accumulating) or 1
     (replacing); Q <- Q + alpha delta e; e <- gamma lambda e. lambda = 0 is Sarsa.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        lam: Trace-decay rate lambda in [0, 1] (0 is one-step TD).
+        trace: Eligibility trace: accumulating or replacing.
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _Algo("sarsa-lambda", "lambda", True, lam=_check_lambda(lam), trace=_check_trace(trace)),
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params={"lambda": float(lam), "trace": trace},
-    )
+    return _learn_entry("sarsa-lambda", locals())
 
 
 def dyna_q(
@@ -1158,157 +1495,40 @@ def dyna_q(
     updates on pairs drawn uniformly from those seen, with (R, S') from the model (the
     last outcome seen: exact on deterministic problems). ``planning_steps = 0`` is
     Q-learning.
+
+    Args:
+        problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
+        planning_steps: Planning updates from the learned model after each real step (0 is
+            Q-learning).
+        episodes: Number of episodes.
+        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
+            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
+        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
+            the episode number (``"linear:1,0.01,5000"``).
+        gamma: Discount rate (default: the problem's).
+        seed: Seed or Generator; same seed, same result.
+        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
+            0.5 in Example 6.2).
+        checkpoints: About how many points of the error curve against the exact answer.
+        max_steps: Step limit of an episode (then truncated: bootstrap).
+        model: The FiniteMDP behind an env, for the error curve.
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
+        against q* where the model is known.
     """
-    return _control(
-        _Algo("dyna-q", "dyna", True, planning=_check_planning(planning_steps)),
-        problem,
-        episodes=episodes,
-        alpha=alpha,
-        epsilon=epsilon,
-        gamma=gamma,
-        seed=seed,
-        init=init,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        model=model,
-        progress=progress,
-        params={"planning_steps": int(planning_steps)},
+    return _learn_entry("dyna-q", locals())
+
+
+# </generated learners>
+
+for _entry in TD_ENTRIES:
+    register_algorithm(
+        _entry.name,
+        globals()[_entry.function],
+        _entry.description,
+        options=_entry.options,
+        kind="control" if _entry.control else "prediction",
+        default_episodes=_entry.default_episodes,
     )
-
-
-for _fn in (
-    sarsa,
-    q_learning,
-    expected_sarsa,
-    double_q_learning,
-    n_step_sarsa,
-    sarsa_lambda,
-    dyna_q,
-):
-    _fn.__doc__ = (_fn.__doc__ or "").rstrip() + "\n" + _CONTROL_ARGS
-
-
-# =============================================================================== registry
-#: Options every TD learner takes (besides problem, policy, episodes, seed).
-_COMMON_OPTIONS = {"alpha", "gamma", "init", "max_steps", "model"}
-_CONTROL = {"epsilon"}
-#: name -> (learner, its own options): what :func:`seed_study` calls.
-_LEARNERS: dict[str, tuple[Any, set[str]]] = {
-    "td0": (td0, set()),
-    "n-step-td": (n_step_td, {"n"}),
-    "td-lambda": (td_lambda, {"lam", "trace"}),
-    "sarsa": (sarsa, _CONTROL),
-    "q-learning": (q_learning, _CONTROL),
-    "expected-sarsa": (expected_sarsa, _CONTROL),
-    "double-q-learning": (double_q_learning, _CONTROL),
-    "n-step-sarsa": (n_step_sarsa, _CONTROL | {"n"}),
-    "sarsa-lambda": (sarsa_lambda, _CONTROL | {"lam", "trace"}),
-    "dyna-q": (dyna_q, _CONTROL | {"planning_steps"}),
-}
-
-_ALPHA = Option(
-    "--alpha",
-    "alpha",
-    "schedule",
-    "Step size alpha: a number, or a schedule of each entry's update count "
-    "(1/n, inverse:1,0.6,0.01, exp:0.5,0.999,0.01, linear:0.5,0.01,10000).",
-)
-_EPSILON = Option(
-    "--epsilon",
-    "epsilon",
-    "schedule",
-    "Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of the "
-    "episode number (1/n, exp:1,0.999,0.01, linear:1,0.01,5000).",
-)
-_INIT = Option(
-    "--init",
-    "init",
-    "float",
-    "Initial value of every non-terminal entry of the table (high values explore optimistically).",
-)
-_N = Option("--n", "n", "int", "Number of steps n of the n-step return (n = 1 is one-step TD).")
-_LAM = Option("--lambda", "lam", "float", "Trace-decay rate lambda in [0, 1] (0 is one-step TD).")
-_TRACE = Option("--trace", "trace", "str", "Eligibility trace: accumulating or replacing.")
-_PLAN = Option(
-    "--planning-steps",
-    "planning_steps",
-    "int",
-    "Planning updates from the learned model after each real step (0 is Q-learning).",
-)
-
-for _name, _learner, _desc, _opts, _kind, _eps in (
-    ("td0", td0, "TD(0) prediction of v_pi (S&B 6.1).", (_ALPHA, _INIT), "prediction", 100),
-    (
-        "n-step-td",
-        n_step_td,
-        "n-step TD prediction of v_pi (S&B 7.1).",
-        (_N, _ALPHA, _INIT),
-        "prediction",
-        100,
-    ),
-    (
-        "td-lambda",
-        td_lambda,
-        "TD(lambda) prediction with eligibility traces (S&B 12.2).",
-        (_LAM, _TRACE, _ALPHA, _INIT),
-        "prediction",
-        100,
-    ),
-    (
-        "sarsa",
-        sarsa,
-        "Sarsa: on-policy TD control (S&B 6.4).",
-        (_ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "q-learning",
-        q_learning,
-        "Q-learning: off-policy TD control (S&B 6.5).",
-        (_ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "expected-sarsa",
-        expected_sarsa,
-        "Expected Sarsa (S&B 6.6).",
-        (_ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "double-q-learning",
-        double_q_learning,
-        "Double Q-learning, no maximisation bias (S&B 6.7).",
-        (_ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "n-step-sarsa",
-        n_step_sarsa,
-        "n-step Sarsa (S&B 7.2).",
-        (_N, _ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "sarsa-lambda",
-        sarsa_lambda,
-        "Sarsa(lambda) with eligibility traces (S&B 12.7).",
-        (_LAM, _TRACE, _ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-    (
-        "dyna-q",
-        dyna_q,
-        "Dyna-Q: Q-learning plus planning from a learned model (S&B 8.2).",
-        (_PLAN, _ALPHA, _EPSILON, _INIT),
-        "control",
-        500,
-    ),
-):
-    register_algorithm(_name, _learner, _desc, options=_opts, kind=_kind, default_episodes=_eps)  # type: ignore[arg-type]

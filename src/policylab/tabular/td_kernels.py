@@ -31,39 +31,60 @@ average), exploration rates at n = the episode number.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit
-from numba.extending import register_jitable
+from numba import njit, prange
 
 from policylab.tabular.kernels import (
+    Model,
     env_reset,
     env_step,
     epsilon_greedy_action,
-    epsilon_greedy_prob,
     rand_below,
     sample_action,
     sample_next,
+)
+from policylab.tabular.rules.td import (
+    double_q_target,
+    expected_sarsa_target,
+    n_step_return,
+    q_learning_target,
+    sarsa_target,
+    td_error,
+    td_target,
+    td_update,
 )
 from policylab.tabular.schedules import schedule_value
 
 __all__ = [
     "DOUBLE_Q",
+    "DYNA",
     "EXPECTED_SARSA",
+    "KERNELS",
+    "LAMBDA",
+    "N_STEP",
+    "ONE_STEP",
     "Q_LEARNING",
     "SARSA",
+    "TD0",
     "TRACE_ACCUMULATING",
     "TRACE_REPLACING",
+    "Episodes",
+    "Model",
+    "Settings",
+    "Tables",
     "double_q_target",
     "dyna_q_kernel",
     "expected_sarsa_target",
     "lambda_kernel",
+    "many_runs",
     "model_tuple",
     "n_step_kernel",
     "n_step_return",
     "one_step_control_kernel",
     "q_learning_target",
+    "run_kernel",
     "sarsa_target",
     "td0_kernel",
     "td_error",
@@ -77,151 +98,108 @@ SARSA, Q_LEARNING, EXPECTED_SARSA, DOUBLE_Q = 0, 1, 2, 3
 TRACE_ACCUMULATING, TRACE_REPLACING = 0, 1
 
 
-# ---------------------------------------------------------------------------- environment
-def model_tuple(km: Any | None) -> tuple[Any, ...]:
-    """The model arrays a kernel samples, from a :class:`~policylab.tabular.kernels.KernelMDP`.
+# ---------------------------------------------------------------------------- arguments
+class Settings(NamedTuple):
+    """The fixed settings of one run: discount, schedules, step limit, the algorithm's own.
 
-    ``(indptr, next_states, probs, rewards, terminal, initial)``; with None (the
-    general path, which steps a Gymnasium env instead) empty arrays of the same types.
+    ``alpha`` and ``epsilon`` are :attr:`~policylab.tabular.Schedule.params` arrays;
+    ``rule`` one of :data:`SARSA`, :data:`Q_LEARNING`, :data:`EXPECTED_SARSA`,
+    :data:`DOUBLE_Q` (one-step control); ``n`` the steps of an n-step return; ``lam``
+    and ``trace`` (:data:`TRACE_ACCUMULATING`, :data:`TRACE_REPLACING`) of a lambda
+    method; ``planning`` the Dyna-Q planning updates per step; ``control`` whether the
+    table is Q (S, A) rather than V (S, 1).
+    """
+
+    gamma: float
+    alpha: Any
+    epsilon: Any
+    max_steps: int
+    rule: int
+    n: int
+    lam: float
+    trace: int
+    planning: int
+    control: bool
+
+
+class Tables(NamedTuple):
+    """What one run learns and keeps between calls, updated in place.
+
+    ``w``: V (S, 1) or Q (S, A) (Q1 for Double Q); ``q2``: Q2 of Double Q; ``qb``: the
+    table the behaviour is epsilon-greedy in (``w`` itself, or Q1 + Q2 kept up to date);
+    ``counts``: updates of each entry (the step size's n); ``pi``: the (S, A) policy
+    evaluated (prediction); ``model_next``, ``model_reward``, ``seen``: Dyna-Q's learned
+    model. Tables a family does not use are empty.
+    """
+
+    w: Any
+    q2: Any
+    qb: Any
+    counts: Any
+    pi: Any
+    model_next: Any
+    model_reward: Any
+    seen: Any
+
+
+class Episodes(NamedTuple):
+    """Per-episode records a kernel writes: return G_0, length and first action A_0."""
+
+    returns: Any
+    lengths: Any
+    first_actions: Any
+
+
+def model_tuple(km: Any | None, mask: Any = None) -> Model:
+    """The :class:`Model` of a :class:`~policylab.tabular.kernels.KernelMDP`.
+
+    With None (the general path, which steps a Gymnasium env instead) empty arrays of
+    the same types, and ``mask`` (default: an empty (0, 0) mask) as A(s).
     """
     if km is None:
-        return (
+        return Model(
             np.zeros(1, dtype=np.int64),
             np.zeros(0, dtype=np.int32),
             np.zeros(0),
             np.zeros(0),
             np.zeros(1, dtype=np.bool_),
             np.zeros(1),
+            np.zeros((0, 0), dtype=np.bool_) if mask is None else mask,
         )
-    return (km.indptr, km.next_states, km.probs, km.rewards, km.terminal, km.initial)
-
-
-# ---------------------------------------------------------------------------- update rules
-@register_jitable
-def td_update(estimate: float, alpha: float, target: float) -> float:
-    """NewEstimate = OldEstimate + alpha [Target - OldEstimate]  (S&B eq. 2.4)."""
-    return estimate + alpha * (target - estimate)
-
-
-@register_jitable
-def td_target(r: float, gamma: float, v_next: float, terminated: bool) -> float:
-    """The TD(0) target R_{t+1} + gamma V(S_{t+1}), with V(terminal) = 0  (S&B eq. 6.2)."""
-    if terminated:
-        return r
-    return r + gamma * v_next
-
-
-@register_jitable
-def td_error(r: float, gamma: float, v_next: float, v: float, terminated: bool) -> float:
-    """The TD error delta_t = R_{t+1} + gamma V(S_{t+1}) - V(S_t)  (S&B eq. 6.5)."""
-    return td_target(r, gamma, v_next, terminated) - v
-
-
-@register_jitable
-def sarsa_target(r: float, gamma: float, q_next: float, terminated: bool) -> float:
-    """The Sarsa target R_{t+1} + gamma Q(S_{t+1}, A_{t+1})  (S&B eq. 6.7)."""
-    if terminated:
-        return r
-    return r + gamma * q_next
-
-
-@register_jitable
-def q_learning_target(
-    r: float, gamma: float, q: Any, mask: Any, s_next: int, terminated: bool
-) -> float:
-    """The Q-learning target R_{t+1} + gamma max_a Q(S_{t+1}, a)  (S&B eq. 6.8).
-
-    ``q`` and ``mask`` are the whole (S, A) tables and ``s_next`` the row of S_{t+1}
-    (indexing them here, rather than passing a row view, keeps the compiled step loop
-    free of array temporaries).
-    """
-    if terminated:
-        return r
-    best = -np.inf
-    for a in range(q.shape[1]):
-        if mask[s_next, a] and q[s_next, a] > best:
-            best = q[s_next, a]
-    return r + gamma * best
-
-
-@register_jitable
-def expected_sarsa_target(
-    r: float, gamma: float, q_next_row: Any, mask_row: Any, epsilon: float, terminated: bool
-) -> float:
-    """R_{t+1} + gamma sum_a pi(a | S_{t+1}) Q(S_{t+1}, a), pi epsilon-greedy  (S&B eq. 6.9).
-
-    pi is the behaviour policy's epsilon-greedy (ties shared), as
-    :func:`~policylab.tabular.kernels.epsilon_greedy_prob` gives it.
-    """
-    if terminated:
-        return r
-    expected = 0.0
-    for a in range(q_next_row.shape[0]):
-        if mask_row[a]:
-            expected += epsilon_greedy_prob(q_next_row, mask_row, epsilon, a) * q_next_row[a]
-    return r + gamma * expected
-
-
-@register_jitable
-def double_q_target(
-    r: float, gamma: float, q_select_row: Any, q_eval_row: Any, mask_row: Any, terminated: bool
-) -> float:
-    """R_{t+1} + gamma Q2(S_{t+1}, argmax_a Q1(S_{t+1}, a))  (S&B eq. 6.10).
-
-    One table picks the action (its first maximiser), the other values it.
-    """
-    if terminated:
-        return r
-    best = -np.inf
-    arg = 0
-    for a in range(q_select_row.shape[0]):
-        if mask_row[a] and q_select_row[a] > best:
-            best = q_select_row[a]
-            arg = a
-    return r + gamma * float(q_eval_row[arg])
-
-
-@register_jitable
-def n_step_return(rewards: Any, start: int, end: int, gamma: float) -> tuple[float, float]:
-    """The n-step return's rewards, sum_{i=start+1}^{end} gamma^{i-start-1} R_i (S&B eq. 7.1).
-
-    Also returns gamma^{end-start}, the discount of the bootstrap term.
-
-    ``rewards`` is a ring buffer indexed ``i % len(rewards)``.
-    """
-    m = rewards.shape[0]
-    g = 0.0
-    p = 1.0
-    for i in range(start + 1, end + 1):
-        g += p * rewards[i % m]
-        p *= gamma
-    return g, p
+    return Model(
+        km.indptr,
+        km.next_states,
+        km.probs,
+        km.rewards,
+        km.terminal,
+        km.initial,
+        km.mask if mask is None else mask,
+    )
 
 
 # ---------------------------------------------------------------------------- TD(0)
 @njit(cache=True, nogil=True)
 def td0_kernel(
     env: Any,
-    model: Any,
-    pi: Any,
-    v: Any,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
     k0: int,
     k1: int,
-    gamma: float,
-    alpha_params: Any,
-    max_steps: int,
-    rng: Any,
-    counts: Any,
-    returns: Any,
-    lengths: Any,
 ) -> int:
     """Tabular TD(0) prediction of v_pi (S&B section 6.1), in place on ``v``.
 
     Each step: A ~ pi(. | S); take A, observe R, S'; V(S) <- V(S) + alpha [R + gamma
     V(S') - V(S)]; S <- S'.
     """
-    indptr, next_states, probs, rewards, terminal, initial = model
-    n_actions = pi.shape[1]
+    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    returns, lengths = out.returns, out.lengths
+    gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
+    pi, counts = tables.pi, tables.counts[:, 0]
+    v = tables.w[:, 0]
+    n_actions = mask.shape[1]
     steps = 0
     for k in range(k0, k1):
         s = env_reset(env, initial, rng)
@@ -250,23 +228,13 @@ def td0_kernel(
 @njit(cache=True, nogil=True)
 def one_step_control_kernel(
     env: Any,
-    model: Any,
-    mask: Any,
-    q1: Any,
-    q2: Any,
-    qb: Any,
-    rule: int,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
     k0: int,
     k1: int,
-    gamma: float,
-    alpha_params: Any,
-    epsilon_params: Any,
-    max_steps: int,
-    rng: Any,
-    counts: Any,
-    returns: Any,
-    lengths: Any,
-    first_actions: Any,
 ) -> int:
     """Sarsa, Q-learning, Expected Sarsa or Double Q-learning (S&B 6.4-6.7), in place.
 
@@ -286,7 +254,11 @@ def one_step_control_kernel(
     (numba prunes the ``env is None`` branch): the call, with its six array arguments,
     cost this hottest loop a third of its speed.
     """
-    indptr, next_states, probs, rewards, terminal, initial = model
+    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    returns, lengths = out.returns, out.lengths
+    gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
+    epsilon_params, rule, first_actions = settings.epsilon, settings.rule, out.first_actions
+    q1, q2, qb, counts = tables.w, tables.q2, tables.qb, tables.counts
     n_actions = mask.shape[1]
     steps = 0
     for k in range(k0, k1):
@@ -312,19 +284,19 @@ def one_step_control_kernel(
             counts[s, a] += 1
             alpha = schedule_value(alpha_params, float(counts[s, a]))
             a2 = 0
-            if rule == 0:
+            if rule == SARSA:
                 q_next = 0.0
                 if not terminated:
                     a2 = epsilon_greedy_action(q1[s2], mask[s2], epsilon, rng)
                     q_next = q1[s2, a2]
                 q1[s, a] = td_update(q1[s, a], alpha, sarsa_target(r, gamma, q_next, terminated))
-            elif rule == 1:
+            elif rule == Q_LEARNING:
                 target = q_learning_target(r, gamma, q1, mask, s2, terminated)
                 q1[s, a] = td_update(q1[s, a], alpha, target)
-            elif rule == 2:
+            elif rule == EXPECTED_SARSA:
                 target = expected_sarsa_target(r, gamma, q1[s2], mask[s2], epsilon, terminated)
                 q1[s, a] = td_update(q1[s, a], alpha, target)
-            elif rule == 3:
+            elif rule == DOUBLE_Q:
                 if rand_below(rng, 2) == 0:  # the coin: update Q1 (else Q2)
                     target = double_q_target(r, gamma, q1[s2], q2[s2], mask[s2], terminated)
                     q1[s, a] = td_update(q1[s, a], alpha, target)
@@ -334,7 +306,7 @@ def one_step_control_kernel(
                 qb[s, a] = q1[s, a] + q2[s, a]
             if terminated or truncated or t >= max_steps:
                 break
-            if rule != 0:
+            if rule != SARSA:
                 a2 = epsilon_greedy_action(qb[s2], mask[s2], epsilon, rng)
             s, a = s2, a2
         returns[k] = g
@@ -347,22 +319,13 @@ def one_step_control_kernel(
 @njit(cache=True, nogil=True)
 def n_step_kernel(
     env: Any,
-    model: Any,
-    mask: Any,
-    pi: Any,
-    w: Any,
-    control: bool,
-    n: int,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
     k0: int,
     k1: int,
-    gamma: float,
-    alpha_params: Any,
-    epsilon_params: Any,
-    max_steps: int,
-    rng: Any,
-    counts: Any,
-    returns: Any,
-    lengths: Any,
 ) -> int:
     """n-step TD prediction (``control=False``) or n-step Sarsa (S&B 7.1, 7.2), in place.
 
@@ -375,7 +338,11 @@ def n_step_kernel(
     and W(S_tau[, A_tau]) <- W + alpha [G - W]. A truncated episode bootstraps from its
     last state. With n = 1 this is exactly TD(0) or Sarsa.
     """
-    indptr, next_states, probs, rewards, terminal, initial = model
+    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    returns, lengths = out.returns, out.lengths
+    gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
+    epsilon_params, control, n = settings.epsilon, settings.control, settings.n
+    pi, w, counts = tables.pi, tables.w, tables.counts
     n_actions = mask.shape[1]
     m = n + 1
     S_buf = np.zeros(m, dtype=np.int64)
@@ -443,23 +410,13 @@ def n_step_kernel(
 @njit(cache=True, nogil=True)
 def lambda_kernel(
     env: Any,
-    model: Any,
-    mask: Any,
-    pi: Any,
-    w: Any,
-    control: bool,
-    lam: float,
-    trace: int,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
     k0: int,
     k1: int,
-    gamma: float,
-    alpha_params: Any,
-    epsilon_params: Any,
-    max_steps: int,
-    rng: Any,
-    counts: Any,
-    returns: Any,
-    lengths: Any,
 ) -> int:
     """Tabular TD(lambda) (``control=False``) or Sarsa(lambda) (S&B 12.2, 12.7), in place.
 
@@ -469,7 +426,12 @@ def lambda_kernel(
     each episode. With lambda = 0 this is exactly TD(0) or Sarsa. The step size is read
     at the current entry's update count.
     """
-    indptr, next_states, probs, rewards, terminal, initial = model
+    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    returns, lengths = out.returns, out.lengths
+    gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
+    epsilon_params, control = settings.epsilon, settings.control
+    lam, trace = settings.lam, settings.trace
+    pi, w, counts = tables.pi, tables.w, tables.counts
     n_actions = mask.shape[1]
     e = np.zeros_like(w)
     n_rows, n_cols = w.shape
@@ -499,7 +461,7 @@ def lambda_kernel(
                 else:
                     w_next = w[s2, 0]
             delta = td_error(r, gamma, w_next, w[s, c], terminated)
-            if trace == 1:
+            if trace == TRACE_REPLACING:
                 e[s, c] = 1.0
             else:
                 e[s, c] += 1.0
@@ -523,23 +485,13 @@ def lambda_kernel(
 @njit(cache=True, nogil=True)
 def dyna_q_kernel(
     env: Any,
-    model: Any,
-    mask: Any,
-    q: Any,
-    n_planning: int,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
     k0: int,
     k1: int,
-    gamma: float,
-    alpha_params: Any,
-    epsilon_params: Any,
-    max_steps: int,
-    rng: Any,
-    counts: Any,
-    returns: Any,
-    lengths: Any,
-    model_next: Any,
-    model_reward: Any,
-    seen: Any,
 ) -> int:
     """Tabular Dyna-Q (S&B 8.2): Q-learning plus ``n_planning`` updates from a learned model.
 
@@ -550,7 +502,12 @@ def dyna_q_kernel(
     ``seen[0]`` counts the pairs seen, ``seen[1:]`` lists them (kept across calls).
     With ``n_planning = 0`` this is exactly Q-learning.
     """
-    indptr, next_states, probs, rewards, terminal, initial = model
+    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    returns, lengths = out.returns, out.lengths
+    gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
+    epsilon_params, n_planning = settings.epsilon, settings.planning
+    q, counts = tables.w, tables.counts
+    model_next, model_reward, seen = tables.model_next, tables.model_reward, tables.seen
     n_actions = mask.shape[1]
     steps = 0
     for k in range(k0, k1):
@@ -593,4 +550,81 @@ def dyna_q_kernel(
         returns[k] = g
         lengths[k] = t
         steps += t
+    return steps
+
+
+# ---------------------------------------------------------------------------- one call, many runs
+#: Families of :func:`run_kernel`: which episode loop a learner runs.
+TD0, ONE_STEP, N_STEP, LAMBDA, DYNA = 0, 1, 2, 3, 4
+
+
+@njit(cache=True, nogil=True)
+def run_kernel(
+    family: int,
+    env: Any,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rng: Any,
+    k0: int,
+    k1: int,
+) -> int:
+    """Run episodes k0 .. k1 - 1 of the episode loop of ``family``; return the steps."""
+    if family == TD0:
+        return td0_kernel(env, model, tables, settings, out, rng, k0, k1)
+    if family == ONE_STEP:
+        return one_step_control_kernel(env, model, tables, settings, out, rng, k0, k1)
+    if family == N_STEP:
+        return n_step_kernel(env, model, tables, settings, out, rng, k0, k1)
+    if family == LAMBDA:
+        return lambda_kernel(env, model, tables, settings, out, rng, k0, k1)
+    return dyna_q_kernel(env, model, tables, settings, out, rng, k0, k1)
+
+
+#: The episode loop of each family (their ``py_func`` is the general path).
+KERNELS = {
+    TD0: td0_kernel,
+    ONE_STEP: one_step_control_kernel,
+    N_STEP: n_step_kernel,
+    LAMBDA: lambda_kernel,
+    DYNA: dyna_q_kernel,
+}
+
+
+@njit(cache=True, parallel=True)
+def many_runs(
+    family: int,
+    model: Model,
+    tables: Tables,
+    settings: Settings,
+    out: Episodes,
+    rngs: Any,
+    episodes: int,
+) -> Any:
+    """Run R independent runs of ``episodes`` episodes each, in parallel over runs.
+
+    ``tables`` and ``out`` hold every run's arrays with a leading run axis (R, ...),
+    except ``tables.pi``, the one policy every run evaluates; ``rngs`` (R, 4) is every
+    run's own xoshiro state. Run r touches only its own slices and its own RNG stream,
+    so its numbers are those of the run alone, whatever the number of threads (numba's
+    ``prange``; set with ``numba.set_num_threads``). Returns the steps of each run.
+    """
+    n_runs = rngs.shape[0]
+    steps = np.zeros(n_runs, dtype=np.int64)
+    for r in prange(n_runs):
+        run_tables = Tables(
+            tables.w[r],
+            tables.q2[r],
+            tables.qb[r],
+            tables.counts[r],
+            tables.pi,
+            tables.model_next[r],
+            tables.model_reward[r],
+            tables.seen[r],
+        )
+        run_out = Episodes(out.returns[r], out.lengths[r], out.first_actions[r])
+        steps[r] = run_kernel(
+            family, None, model, run_tables, settings, run_out, rngs[r], 0, episodes
+        )
     return steps

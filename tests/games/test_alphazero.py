@@ -154,3 +154,13 @@ def test_trained_tictactoe_network_never_loses_to_perfect_play_as_x_or_o():
         assert worst_outcome(player, TIC_TAC_TOE.initial(), me, best_moves) == 0.0
     # the line it used to lose as O: X 4, O 1, X 9 (7 loses; 3, 5 or 6 hold the draw)
     assert player.choose(TIC_TAC_TOE.from_moves("419")) in (2, 4, 5)
+
+
+def test_backend_ray_without_ray_names_the_sweep_extra(monkeypatch, tmp_path):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
+    cfg = default_config("tic-tac-toe", **{**TINY, "workers": 1, "backend": "ray"})
+    with pytest.raises(InvalidArgumentError, match=r"needs Ray.*pip install 'policylab\[sweep\]'"):
+        train_alphazero("tic-tac-toe", tmp_path / "r", cfg)
+    assert not (tmp_path / "r").exists()  # refused before the run folder is touched

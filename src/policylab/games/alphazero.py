@@ -743,12 +743,26 @@ class _RayWorkers:
             signal.signal(signal.SIGTERM, self.sigterm)
 
 
-def probe_ray(cfg: AlphaZeroConfig) -> None:
-    """Refuse, within seconds, settings whose Ray cluster address cannot be reached."""
-    if cfg.backend == "ray" and cfg.ray_address is not None:
-        from policylab.cluster import probe_address
+def check_ray_backend(cfg: AlphaZeroConfig) -> None:
+    """With ``backend="ray"``: refuse, within seconds, a missing Ray or an unreachable address.
 
+    Raises:
+        InvalidArgumentError: Ray is not installed, or nothing answers at ``ray_address``.
+    """
+    if cfg.backend != "ray":
+        return
+    from policylab.cluster import import_ray, probe_address
+
+    import_ray("alphazero's backend=ray")
+    if cfg.ray_address is not None:
         probe_address(cfg.ray_address, option="alphazero: ray_address")
+
+
+def _ray_settings(address: Any) -> AlphaZeroConfig:
+    """Settings with ``backend="ray"`` and ``address`` (checked), to check a resume's change."""
+    cfg = AlphaZeroConfig(backend="ray", ray_address=address)
+    cfg.validate()
+    return cfg
 
 
 def _start_workers(cfg: AlphaZeroConfig) -> _ProcessWorkers | _RayWorkers | None:
@@ -842,9 +856,9 @@ def train_alphazero(
     if not resume:
         config = dataclasses.replace(config or default_config(g), **where)
         config.validate()
-        probe_ray(config)
-    elif ray_address is not None:
-        probe_ray(dataclasses.replace(default_config(g), backend="ray", ray_address=ray_address))
+        check_ray_backend(config)
+    elif where.get("backend") == "ray" or ray_address is not None:
+        check_ray_backend(_ray_settings(ray_address))
     with (
         game_run(run_dir, resume=resume, algo="alphazero", game=g.name) as run,
         _TorchThreads(1),  # small nets: 1 thread
@@ -1053,9 +1067,9 @@ def train_alphazero_cli(
             )
     cfg = None if resume else default_config(game, **{**fields, "seed": seed})
     if cfg is not None:
-        probe_ray(cfg)  # before the run folder is touched
-    elif where.get("ray_address") is not None:
-        probe_ray(default_config(game, backend="ray", ray_address=where["ray_address"]))
+        check_ray_backend(cfg)  # before the run folder is touched
+    elif where.get("backend") == "ray" or where.get("ray_address") is not None:
+        check_ray_backend(_ray_settings(where.get("ray_address")))
     t0 = time.perf_counter()
     with (
         game_run(run, resume=resume, algo="alphazero", game=game.name),

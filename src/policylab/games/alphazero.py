@@ -703,7 +703,11 @@ class _RayWorkers:
         self.ray = import_ray(what)
         main = threading.current_thread() is threading.main_thread()
         self.sigterm = signal.getsignal(signal.SIGTERM) if main else None  # ray.init sets one
-        self.started = connect(address, workers, option="alphazero: ray_address", what=what)
+        try:
+            self.started = connect(address, workers, option="alphazero: ray_address", what=what)
+        except BaseException:
+            self._restore_sigterm()
+            raise
         self.task = self.ray.remote(num_cpus=1)(_worker_games)
         self.pending: list[Any] = []
 
@@ -739,6 +743,9 @@ class _RayWorkers:
         self.pending = []
         if self.started:
             ray.shutdown()
+        self._restore_sigterm()
+
+    def _restore_sigterm(self) -> None:
         if self.sigterm is not None:
             signal.signal(signal.SIGTERM, self.sigterm)
 

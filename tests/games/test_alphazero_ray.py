@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 import pytest
+from tests.games.test_alphazero import TINY as SMOKE
 
 from policylab.exceptions import InvalidArgumentError, TrainingInterrupted
 from policylab.games.alphazero import default_config, train_alphazero
@@ -22,20 +23,9 @@ from policylab.games.alphazero import default_config, train_alphazero
 pytest.importorskip("torch")
 ray = pytest.importorskip("ray")
 
-# 6 games in batches of 2: three batches, dealt 2 + 1 to two workers
-TINY = dict(
-    iterations=1,
-    games_per_iteration=6,
-    parallel_games=2,
-    simulations=8,
-    eval_simulations=8,
-    train_steps=4,
-    batch_size=32,
-    eval_games=2,
-    channels=8,
-    blocks=1,
-    workers=0,
-)
+# the smoke run's settings, with 6 games in batches of 2: three batches, dealt 2 + 1 to
+# two workers
+TINY = {**SMOKE, "iterations": 1, "games_per_iteration": 6, "parallel_games": 2}
 
 
 def _tensors(run):

@@ -18,11 +18,21 @@ import pytest
 #: gone from the suite changes only the order.
 SLOWEST_FIRST = (
     "tests/docs/test_site.py",
-    "tests/docs/test_readme.py",
-    "tests/experiments/test_sweep_ray.py",
+    "tests/cli/test_cli_core.py",
+    "tests/tabular/test_td_equivalence.py",
     "tests/games/test_runs.py",
-    "tests/experiments/test_cluster.py",
+    "tests/experiments/test_sweep_ray.py",
+    "tests/experiments/test_sweep_cli.py",
+    "tests/tabular/test_blind_spots.py",
+    "tests/tabular/test_registry.py",
+    "tests/docs/test_readme.py",
+    "tests/tabular/test_seed_study.py",
+    "tests/deep/test_ppo.py",
     "tests/games/test_alphazero_ray.py",
+    "tests/plot/test_solution_figures.py",
+    "tests/deep/test_sac_td3.py",
+    "tests/deep/test_dqn.py",
+    "tests/experiments/test_cluster.py",
 )
 
 

@@ -30,6 +30,8 @@ BUDGETS: dict[str, dict[str, str]] = {
         "agent.learn(150_000,": "agent.learn(4_096,",
         "episodes=100": "episodes=5",
     },
+    # 100 random steps, then 900 of SAC's updates: the whole loop, not the 20,000 of a result
+    "pl.deep.SAC(": {"agent.learn(20_000,": "agent.learn(1_000,"},
 }
 
 
@@ -66,6 +68,11 @@ def _claims_deep(ns: dict[str, Any]) -> None:
     assert ns["action"] in (0, 1)
 
 
+def _claims_walking(ns: dict[str, Any]) -> None:
+    assert ns["agent"].num_timesteps >= 1_000
+    assert ns["walker"].config.learning_starts == 10_000
+
+
 def _claims_figures(ns: dict[str, Any]) -> None:
     for name in ("bad.png", "q.svg", "path.png", "curves.png", "fig3_5.png"):
         assert Path("runs", name).stat().st_size > 1000, name
@@ -76,6 +83,7 @@ CLAIMS = {
     "pl.relative_value_iteration(robot).gain": _claims_planning,
     "tabular.seed_study(": _claims_td,
     "pl.deep.PPO(": _claims_deep,
+    "pl.deep.SAC(": _claims_walking,
     "plot.save_solution_figure(mdp, v, bad": _claims_figures,
 }
 

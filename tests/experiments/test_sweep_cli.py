@@ -13,10 +13,10 @@ import time
 import pytest
 
 from policylab.cli.main import main
+from policylab.cluster import parse_address
 from policylab.exceptions import InvalidArgumentError
 from policylab.experiments import build_spec, config_label, parse_distribution, parse_option_tokens
 from policylab.experiments import parse_set as parse_set_values
-from policylab.experiments.cluster import parse_address
 
 
 def run(capsys, *argv: str) -> tuple[int, str, str]:

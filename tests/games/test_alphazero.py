@@ -1,4 +1,8 @@
-"""AlphaZero: PUCT on exact cases, a smoke run with resume, worker processes, bad input."""
+"""AlphaZero: PUCT on exact cases, a smoke run with resume, bad input.
+
+Worker processes and Ray tasks are held against self-play in this process in
+``test_alphazero_ray.py``.
+"""
 
 from __future__ import annotations
 
@@ -62,18 +66,6 @@ def test_smoke_run_resume_and_player(tmp_path):
     a = (run / "progress.csv").read_text().splitlines()[1].split(",")[:3]
     b = (other / "progress.csv").read_text().splitlines()[1].split(",")[:3]
     assert a == b
-
-
-def test_worker_processes_give_the_same_games(tmp_path):
-    cfg = default_config("connect-four", **{**TINY, "iterations": 1, "games_per_iteration": 2})
-    train_alphazero("connect-four", tmp_path / "inproc", cfg)
-    cfg2 = default_config(
-        "connect-four", **{**TINY, "iterations": 1, "games_per_iteration": 2, "workers": 2}
-    )
-    train_alphazero("connect-four", tmp_path / "workers", cfg2)
-    a = (tmp_path / "inproc" / "progress.csv").read_text().splitlines()[1].split(",")
-    b = (tmp_path / "workers" / "progress.csv").read_text().splitlines()[1].split(",")
-    assert a[:6] == b[:6]  # losses, evaluation and positions agree; only timings differ
 
 
 def test_config_errors():
@@ -162,3 +154,13 @@ def test_trained_tictactoe_network_never_loses_to_perfect_play_as_x_or_o():
         assert worst_outcome(player, TIC_TAC_TOE.initial(), me, best_moves) == 0.0
     # the line it used to lose as O: X 4, O 1, X 9 (7 loses; 3, 5 or 6 hold the draw)
     assert player.choose(TIC_TAC_TOE.from_moves("419")) in (2, 4, 5)
+
+
+def test_backend_ray_without_ray_names_the_sweep_extra(monkeypatch, tmp_path):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
+    cfg = default_config("tic-tac-toe", **{**TINY, "workers": 1, "backend": "ray"})
+    with pytest.raises(InvalidArgumentError, match=r"needs Ray.*pip install 'policylab\[sweep\]'"):
+        train_alphazero("tic-tac-toe", tmp_path / "r", cfg)
+    assert not (tmp_path / "r").exists()  # refused before the run folder is touched

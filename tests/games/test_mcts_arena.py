@@ -154,3 +154,27 @@ def test_compiled_uct_mostly_plays_solver_optimal_moves_late_in_the_game():
         total += 1
         ok += uct.choose(s) in solver.best_moves(s)
     assert ok >= 0.8 * total
+
+
+def test_worst_outcome_equals_the_plain_minimax_over_every_line():
+    from policylab.games.arena import worst_outcome
+
+    class FirstMove:  # deterministic, and loses a lot: the minimum is not always 0
+        name = "first"
+
+        def choose(self, state):
+            return state.legal_actions()[0]
+
+    def plain(player, s, me):
+        if s.is_terminal():
+            return s.outcome(me)
+        if s.player == me:
+            return plain(player, s.play(player.choose(s)), me)
+        return min(plain(player, s.play(a), me) for a in s.legal_actions())
+
+    for moves in ("", "5", "15", "1529"):
+        s = TIC_TAC_TOE.from_moves(moves)
+        for me in (0, 1):
+            want = plain(FirstMove(), s, me)
+            assert worst_outcome(FirstMove(), s, me, lambda t: t.legal_actions()) == want
+    assert worst_outcome(FirstMove(), TIC_TAC_TOE.initial(), 0, lambda t: t.legal_actions()) == -1

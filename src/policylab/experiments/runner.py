@@ -376,7 +376,7 @@ def run_experiment(
         RunFolderError: The folder is in use, not empty (new), or holds no sweep (resume).
         InvalidArgumentError: An unreachable address.
     """
-    from policylab.experiments.cluster import connect, probe_address
+    from policylab.cluster import connect, probe_address
 
     out_path = Path(out)
     if address is not None:  # an unreachable cluster is refused before the folder is touched

@@ -3,8 +3,8 @@
 One iteration:
 
 1. **Self-play.** Games of the current best network against itself, in parallel
-   worker processes. Each move runs PUCT search from the position: a simulation
-   descends by
+   worker processes or Ray tasks (the same games either way). Each move runs PUCT
+   search from the position: a simulation descends by
 
        a = argmax_a  Q(s, a) + c_puct * P(s, a) * sqrt(N(s)) / (1 + N(s, a)),
 
@@ -26,16 +26,23 @@ The run folder keeps an atomic checkpoint after every iteration (networks,
 optimizer, replay, counters) and resumes from it. Ctrl-C or SIGTERM stops at once,
 keeping the checkpoint of the last whole iteration, and ends the self-play workers
 (which also end by themselves if the training process dies).
+
+With ``backend="ray"`` the workers are Ray tasks running the same function as the
+processes: on a local Ray started for the run with ``workers`` CPUs (and shut down at
+its end), or on the running cluster at ``ray_address``, whose nodes need policylab
+installed.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import itertools
 import math
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -63,6 +70,12 @@ __all__ = [
     "default_config",
     "train_alphazero",
 ]
+
+RESUME_SETTINGS = ("iterations", "workers", "backend", "ray_address")
+"""The settings a resumed run may change: how long it runs and where its self-play runs."""
+
+BACKENDS = ("processes", "ray")
+"""Where AlphaZero's self-play workers can run (:attr:`AlphaZeroConfig.backend`)."""
 
 SYMMETRIES: dict[str, tuple[tuple[int, bool], ...]] = {
     "tic-tac-toe": tuple((k, f) for f in (False, True) for k in range(4)),
@@ -124,10 +137,16 @@ class AlphaZeroConfig:
         blocks: Residual blocks.
         eval_games: Games of the new network against the best per iteration (0: always accept).
         accept_score: Score (wins + draws / 2 per game) the new network needs to become best.
-        workers: Self-play processes (0: in this process).
-        parallel_games: Self-play games each process plays side by side, their search
+        workers: Self-play workers: processes, or Ray tasks with ``backend="ray"``
+            (0: in this process).
+        parallel_games: Self-play games each worker plays side by side, their search
             leaves evaluated by the network in one batch (the same games whatever
-            ``workers`` is).
+            ``workers`` and ``backend`` are).
+        backend: Where the self-play workers run: ``"processes"`` (worker processes on
+            this machine) or ``"ray"`` (Ray tasks: a local Ray with ``workers`` CPUs, or
+            the cluster at ``ray_address``; needs the ``sweep`` extra).
+        ray_address: A running Ray cluster's address (``HOST:PORT``, ``ray://HOST:PORT``
+            or ``auto``) for ``backend="ray"``; None starts a local Ray for the run.
         seed: Seed of the whole run.
     """
 
@@ -151,6 +170,8 @@ class AlphaZeroConfig:
     accept_score: float = 0.55
     workers: int = 2
     parallel_games: int = 32
+    backend: str = "processes"
+    ray_address: str | None = None
     seed: int = 0
 
     def validate(self) -> None:
@@ -193,6 +214,28 @@ class AlphaZeroConfig:
             raise InvalidArgumentError(
                 f"alphazero: weight_decay must be >= 0; got {self.weight_decay!r}"
             )
+        if self.backend not in BACKENDS:
+            raise InvalidArgumentError(
+                f"alphazero: backend must be one of {', '.join(BACKENDS)}; got {self.backend!r}"
+            )
+        if self.backend == "ray" and self.workers < 1:
+            raise InvalidArgumentError(
+                "alphazero: backend=ray runs the self-play workers as Ray tasks; workers must "
+                f"be >= 1; got {self.workers}"
+            )
+        if self.ray_address is not None:
+            if self.backend != "ray":
+                raise InvalidArgumentError(
+                    f"alphazero: ray_address={self.ray_address!r} needs backend=ray; "
+                    f"got backend={self.backend!r}"
+                )
+            if not isinstance(self.ray_address, str):
+                raise InvalidArgumentError(
+                    f"alphazero: ray_address must be HOST:PORT; got {self.ray_address!r}"
+                )
+            from policylab.cluster import parse_address
+
+            parse_address(self.ray_address, "alphazero: ray_address")
 
 
 def default_config(game: str | Game, **overrides: Any) -> AlphaZeroConfig:
@@ -608,6 +651,136 @@ def _worker_games(
     return [g for seeds in batches for g in play_selfplay_games(game, ev, cfg, seeds)]
 
 
+WorkerArgs = tuple[str, dict[str, Any], dict[str, NDArray[Any]]]
+"""What every self-play worker of an iteration gets: (game name, config, best weights)."""
+
+
+class _ProcessWorkers:
+    """Self-play workers as processes on this machine (a spawn pool)."""
+
+    def __init__(self, workers: int) -> None:
+        self.pool = get_context("spawn").Pool(workers, _worker_init, (os.getpid(),))
+        self.pids = {p.pid for p in active_children()}
+
+    def play(
+        self, args: WorkerArgs, chunks: list[list[list[int]]], poll: Callable[[], None]
+    ) -> list[list[SelfPlayGame]]:
+        """:func:`_worker_games` on each chunk of seed batches; ``poll`` is called while waiting."""
+        pending = [self.pool.apply_async(_worker_games, (*args, c)) for c in chunks]
+        for r in pending:
+            while not r.ready():  # a signal is seen within a tenth of a second
+                poll()
+                if not self.pids <= {p.pid for p in active_children()}:
+                    raise RuntimeError(  # the pool would wait for it forever
+                        "a self-play worker process died (killed, or out of memory); the last "
+                        "checkpoint is kept: continue with --resume"
+                    )
+                r.wait(0.1)
+        return [r.get() for r in pending]
+
+    def close(self, finished: bool) -> None:
+        """End the workers: after their work if ``finished``, else at once."""
+        if finished:
+            self.pool.close()
+        else:
+            self.pool.terminate()
+        self.pool.join()
+
+
+class _RayWorkers:
+    """Self-play workers as Ray tasks running :func:`_worker_games`.
+
+    Without an address a local Ray with ``workers`` CPUs starts for the run and is shut
+    down at its end; with one, the run joins that cluster (an unreachable address is
+    refused within seconds) and leaves it running. A process already connected to Ray
+    keeps its connection.
+    """
+
+    def __init__(self, workers: int, address: str | None) -> None:
+        from policylab.cluster import connect, import_ray
+
+        what = "alphazero's backend=ray"
+        self.ray = import_ray(what)
+        main = threading.current_thread() is threading.main_thread()
+        self.sigterm = signal.getsignal(signal.SIGTERM) if main else None  # ray.init sets one
+        try:
+            self.started = connect(address, workers, option="alphazero: ray_address", what=what)
+        except BaseException:
+            self._restore_sigterm()
+            raise
+        self.task = self.ray.remote(num_cpus=1)(_worker_games)
+        self.pending: list[Any] = []
+
+    def play(
+        self, args: WorkerArgs, chunks: list[list[list[int]]], poll: Callable[[], None]
+    ) -> list[list[SelfPlayGame]]:
+        """:func:`_worker_games` on each chunk of seed batches; ``poll`` is called while waiting."""
+        ray = self.ray
+        name, cfg, weights = args
+        shared = ray.put(weights)  # sent to the cluster once, read by every task
+        self.pending = [self.task.remote(name, cfg, shared, c) for c in chunks]
+        waiting = list(self.pending)
+        try:
+            while waiting:  # a signal is seen within a tenth of a second
+                poll()
+                _, waiting = ray.wait(waiting, num_returns=len(waiting), timeout=0.1)
+            results: list[list[SelfPlayGame]] = ray.get(self.pending)
+        except ray.exceptions.RayError as e:
+            raise RuntimeError(
+                f"a self-play task failed on Ray ({type(e).__name__}: "
+                f"{str(e).strip().splitlines()[-1] if str(e).strip() else 'no message'}); "
+                "the last checkpoint is kept: continue with --resume"
+            ) from None
+        self.pending = []
+        return results
+
+    def close(self, finished: bool) -> None:
+        """Cancel unfinished tasks; shut down the local Ray if this run started it."""
+        ray = self.ray
+        for ref in self.pending:
+            with contextlib.suppress(Exception):
+                ray.cancel(ref, force=True)
+        self.pending = []
+        if self.started:
+            ray.shutdown()
+        self._restore_sigterm()
+
+    def _restore_sigterm(self) -> None:
+        if self.sigterm is not None:
+            signal.signal(signal.SIGTERM, self.sigterm)
+
+
+def check_ray_backend(cfg: AlphaZeroConfig) -> None:
+    """With ``backend="ray"``: refuse, within seconds, a missing Ray or an unreachable address.
+
+    Raises:
+        InvalidArgumentError: Ray is not installed, or nothing answers at ``ray_address``.
+    """
+    if cfg.backend != "ray":
+        return
+    from policylab.cluster import import_ray, probe_address
+
+    import_ray("alphazero's backend=ray")
+    if cfg.ray_address is not None:
+        probe_address(cfg.ray_address, option="alphazero: ray_address")
+
+
+def _ray_settings(address: Any) -> AlphaZeroConfig:
+    """Settings with ``backend="ray"`` and ``address`` (checked), to check a resume's change."""
+    cfg = AlphaZeroConfig(backend="ray", ray_address=address)
+    cfg.validate()
+    return cfg
+
+
+def _start_workers(cfg: AlphaZeroConfig) -> _ProcessWorkers | _RayWorkers | None:
+    """The self-play workers of ``cfg`` (None: self-play in this process)."""
+    if cfg.workers == 0:
+        return None
+    if cfg.backend == "ray":
+        return _RayWorkers(cfg.workers, cfg.ray_address)
+    return _ProcessWorkers(cfg.workers)
+
+
 def _match(game: Game, a: AlphaZeroPlayer, b: AlphaZeroPlayer, games: int, seed: int) -> float:
     """A's score (wins + draws / 2 per game); the first two moves of each game are random.
 
@@ -638,9 +811,15 @@ def train_alphazero(
     *,
     resume: bool = False,
     iterations: int | None = None,
+    workers: int | None = None,
+    backend: str | None = None,
+    ray_address: str | None = None,
     on_iteration: Callable[[int, int, dict[str, float]], None] | None = None,
 ) -> AlphaZeroPlayer:
     """Train AlphaZero into ``run_dir``: a checkpoint and a log row after every iteration.
+
+    The self-play games are the same whatever ``workers`` and ``backend`` are, so a run
+    may continue on other workers, or on a Ray cluster, than it started on.
 
     Args:
         game: The game.
@@ -649,6 +828,9 @@ def train_alphazero(
         config: Settings (default: the game's :func:`default_config`; on resume the run's own).
         resume: Continue the run in ``run_dir``.
         iterations: On resume, a new total number of iterations (to train longer).
+        workers: Self-play workers instead of the settings' (on resume, the run's).
+        backend: ``"processes"`` or ``"ray"`` instead of the settings' (on resume, the run's).
+        ray_address: A Ray cluster's address instead of the settings' (on resume, the run's).
         on_iteration: Called with (iteration done, iterations in all, metrics).
 
     Returns:
@@ -659,6 +841,8 @@ def train_alphazero(
             holds none or another learner's (with it).
         TrainingInterrupted: On Ctrl-C or SIGTERM (the checkpoint of the last whole
             iteration is kept); its ``step`` counts the iterations done.
+        InvalidArgumentError: A bad setting, an unreachable Ray address (refused within
+            seconds, before the run folder is touched) or Ray not installed.
     """
     import torch
 
@@ -669,6 +853,19 @@ def train_alphazero(
     from policylab.runs import RUN_JSON
 
     g = get_game(game)
+    where: dict[str, Any] = {
+        k: v
+        for k, v in (("workers", workers), ("backend", backend), ("ray_address", ray_address))
+        if v is not None
+    }
+    if where.get("backend", "ray") != "ray":
+        where.setdefault("ray_address", None)  # no cluster address for worker processes
+    if not resume:
+        config = dataclasses.replace(config or default_config(g), **where)
+        config.validate()
+        check_ray_backend(config)
+    elif where.get("backend") == "ray" or ray_address is not None:
+        check_ray_backend(_ray_settings(ray_address))
     with (
         game_run(run_dir, resume=resume, algo="alphazero", game=g.name) as run,
         _TorchThreads(1),  # small nets: 1 thread
@@ -682,9 +879,11 @@ def train_alphazero(
             cfg = AlphaZeroConfig(**meta["config"])
             if iterations is not None:
                 cfg = dataclasses.replace(cfg, iterations=iterations)
+            cfg = dataclasses.replace(cfg, **where)
             done = int(meta["iteration"])
         else:
-            cfg = config or default_config(g)
+            assert config is not None  # made above
+            cfg = config
             meta, tensors, done = {}, {}, 0
         cfg.validate()
         torch.manual_seed(cfg.seed)
@@ -707,13 +906,13 @@ def train_alphazero(
         else:
             best.load_state_dict(net.state_dict())
         syms = symmetries(g)
-        logger = RunLogger(rd, resume_step=done if resume else None)  # cut back to `done`
-        pool = (
-            get_context("spawn").Pool(cfg.workers, _worker_init, (os.getpid(),))
-            if cfg.workers > 0
-            else None
-        )
-        worker_pids = {p.pid for p in active_children()} if pool is not None else set()
+        pool = _start_workers(cfg)
+        try:
+            logger = RunLogger(rd, resume_step=done if resume else None)  # cut back to `done`
+        except BaseException:
+            if pool is not None:
+                pool.close(False)
+            raise
         finished = False
 
         def stop_if_interrupted(iterations_done: int) -> None:
@@ -777,25 +976,14 @@ def train_alphazero(
                         }
                         chunks = [batches[i :: cfg.workers] for i in range(cfg.workers)]
                         chunks = [c for c in chunks if c]
-                        pending = [
-                            pool.apply_async(
-                                _worker_games, (g.name, dataclasses.asdict(cfg), weights, c)
-                            )
-                            for c in chunks
-                        ]
-                        for r in pending:
-                            while not r.ready():  # a signal is seen within a tenth of a second
-                                stop_if_interrupted(it)
-                                if not worker_pids <= {p.pid for p in active_children()}:
-                                    raise RuntimeError(  # the pool would wait for it forever
-                                        "a self-play worker process died (killed, or out of "
-                                        "memory); the last checkpoint is kept: continue with "
-                                        "--resume"
-                                    )
-                                r.wait(0.1)
+                        results = pool.play(
+                            (g.name, dataclasses.asdict(cfg), weights),
+                            chunks,
+                            lambda: stop_if_interrupted(it),  # noqa: B023 (called at once)
+                        )
                         by_seed = {
                             s: r
-                            for c, res in zip(chunks, [r.get() for r in pending], strict=True)
+                            for c, res in zip(chunks, results, strict=True)
                             for s, r in zip([s for b in c for s in b], res, strict=True)
                         }
                         new_games = [by_seed[s] for s in seeds]
@@ -854,12 +1042,8 @@ def train_alphazero(
             finished = True
         finally:
             logger.close()
-            if pool is not None:
-                if finished:
-                    pool.close()
-                else:  # Ctrl-C, kill or an error: the workers' games are not waited for
-                    pool.terminate()
-                pool.join()
+            if pool is not None:  # after Ctrl-C, kill or an error, their games are not waited for
+                pool.close(finished)
         return AlphaZeroPlayer(best, g, cfg.eval_simulations, cfg.c_puct, name=str(rd))
 
 
@@ -880,12 +1064,19 @@ def train_alphazero_cli(
 
     from policylab.games.runs import game_run
 
-    iterations = fields.pop("iterations", None) if resume else None
-    if resume and fields:
-        raise InvalidArgumentError(
-            "--resume continues a run with its own settings; only --set iterations=N may change"
-        )
+    where: dict[str, Any] = {}
+    if resume:
+        where = {k: fields.pop(k) for k in RESUME_SETTINGS if k in fields}
+        if fields:
+            raise InvalidArgumentError(
+                "--resume continues a run with its own settings; only --set "
+                f"{', '.join(RESUME_SETTINGS)} may change; got {', '.join(sorted(fields))}"
+            )
     cfg = None if resume else default_config(game, **{**fields, "seed": seed})
+    if cfg is not None:
+        check_ray_backend(cfg)  # before the run folder is touched
+    elif where.get("backend") == "ray" or where.get("ray_address") is not None:
+        check_ray_backend(_ray_settings(where.get("ray_address")))
     t0 = time.perf_counter()
     with (
         game_run(run, resume=resume, algo="alphazero", game=game.name),
@@ -902,7 +1093,7 @@ def train_alphazero_cli(
                 f"{m['seconds']:.1f} s"
             )
 
-        train_alphazero(game, run, cfg, resume=resume, iterations=iterations, on_iteration=report)
+        train_alphazero(game, run, cfg, resume=resume, on_iteration=report, **where)
     console.print(
         f"alphazero on {game.name}: {time.perf_counter() - t0:.1f} s; run folder {run.path} "
         f"(try `policylab arena {game.name} {run.path} mcts:100`)"

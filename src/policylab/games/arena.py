@@ -98,20 +98,43 @@ def worst_outcome(
     ``player`` must be deterministic; ``opponent_moves`` gives the moves the opponent may
     make in a position: every legal move, or (with :func:`~policylab.games.best_moves`)
     every optimal one, so that 0 means "never loses to perfect play".
+
+    The value is the minimax one over the lines,
+    W(s) = outcome(s) at the end, W(s') for the player's move s -> s', and the minimum of
+    W over the opponent's allowed moves; each position is visited once however many
+    move orders reach it (the player's move depends on the position only), a number of
+    stones at a time, so that a player with ``choose_many`` searches all its positions
+    with as many stones in one call.
     """
-    if start.is_terminal():
-        return start.outcome(me)
-    if start.player == me:
-        return worst_outcome(player, start.play(player.choose(start)), me, opponent_moves)
-    return min(
-        worst_outcome(player, start.play(a), me, opponent_moves) for a in opponent_moves(start)
-    )
+    layers: list[list[GameState]] = []
+    children: dict[GameState, list[GameState]] = {}
+    seen = {start}
+    layer = [start]
+    while layer:
+        layers.append(layer)
+        mine = [s for s in layer if not s.is_terminal() and s.player == me]
+        for s, a in zip(mine, _choose_all(player, mine), strict=True):
+            children[s] = [s.play(a)]
+        for s in layer:
+            if not s.is_terminal() and s.player != me:
+                children[s] = [s.play(a) for a in opponent_moves(s)]
+        layer = []
+        for s in layers[-1]:
+            for c in children.get(s, ()):
+                if c not in seen:  # a position has the same number of stones on every line
+                    seen.add(c)
+                    layer.append(c)
+    value: dict[GameState, float] = {}
+    for layer in reversed(layers):
+        for s in layer:
+            value[s] = s.outcome(me) if s.is_terminal() else min(value[c] for c in children[s])
+    return value[start]
 
 
 def _choose_all(player: Player, states: list[GameState]) -> list[int]:
     """``player``'s move in each position: one batched call if it has ``choose_many``."""
     many = getattr(player, "choose_many", None)
-    if many is not None:
+    if many is not None and states:
         return [int(m) for m in many(states)]
     return [player.choose(s) for s in states]
 

@@ -37,6 +37,7 @@ import dataclasses
 from typing import TYPE_CHECKING
 
 from policylab.exceptions import InvalidArgumentError
+from policylab.mdp.postdecision import PostDecisionMDP
 from policylab.planning._checks import check_gamma, check_tol
 from policylab.planning._kernels import shared_rows
 from policylab.planning.control import (
@@ -72,6 +73,10 @@ def choose_method(mdp: FiniteMDP, gamma: float | None = None) -> tuple[str, str]
         ``(method, reason)``: a key of :data:`METHODS` other than ``"auto"``, and one
         sentence saying why it suits this MDP.
     """
+    if isinstance(mdp, PostDecisionMDP):
+        from policylab.planning import postdecision
+
+        return postdecision.choose_method(mdp, gamma)
     g = check_gamma(mdp, gamma)
     n_live = int((~mdp.terminal).sum())
     if mdp.terminal.any() and _all_reach_terminal(mdp):
@@ -136,6 +141,11 @@ def solve(
     g = check_gamma(mdp, gamma)
     t = check_tol(tol)
     chosen, reason = choose_method(mdp, g) if method == "auto" else (method, "")
+    if isinstance(mdp, PostDecisionMDP) and chosen not in ("vi", "pi", "mpi"):
+        raise InvalidArgumentError(
+            f"method {chosen!r} needs a FiniteMDP's outcome table; a PostDecisionMDP is solved "
+            "by 'auto', 'vi', 'pi' or 'mpi' (or solve model.to_finite_mdp())"
+        )
     if chosen == "vi":
         res = value_iteration(mdp, tol=t, gamma=g)
     elif chosen == "vi-gs":

@@ -21,6 +21,7 @@ import scipy.sparse as sp
 
 from policylab.exceptions import InvalidArgumentError, InvalidMDPError, NotConvergedWarning
 from policylab.mdp.policy import Policy
+from policylab.mdp.postdecision import PostDecisionMDP
 from policylab.planning._checks import (
     PolicyLike,
     as_policy,
@@ -80,6 +81,16 @@ def _require_episodic(mdp: FiniteMDP, what: str) -> None:
     raise_if_stuck(mdp, stuck, f"{what} (under any policy)", InvalidMDPError)
 
 
+def _no_postdecision_option(**defaults: bool) -> None:
+    """Refuse tabular-only options (each given as "is it at its default?") on a PostDecisionMDP."""
+    given = [name for name, ok in defaults.items() if not ok]
+    if given:
+        raise InvalidArgumentError(
+            f"{', '.join(given)} applies to a FiniteMDP's outcome table only, not to a "
+            "PostDecisionMDP; leave it at its default (or solve model.to_finite_mdp())"
+        )
+
+
 def value_iteration(
     mdp: FiniteMDP,
     *,
@@ -132,7 +143,20 @@ def value_iteration(
 
     Returns:
         A :class:`PlanningResult`; ``history`` holds max_s |d(s)| of each sweep.
+
+    A :class:`~policylab.mdp.PostDecisionMDP` is solved by synchronous sweeps through its
+    post-decision values (see :mod:`policylab.planning.postdecision`), with the same
+    stopping rule and bound.
     """
+    if isinstance(mdp, PostDecisionMDP):
+        _no_postdecision_option(
+            gauss_seidel=not gauss_seidel, order=isinstance(order, str) and order == "auto"
+        )
+        from policylab.planning import postdecision
+
+        return postdecision.value_iteration(
+            mdp, tol=tol, gamma=gamma, max_iter=max_iter, v0=v0, tie_tol=tie_tol
+        )
     t0 = time.perf_counter()
     g = check_gamma(mdp, gamma)
     t = check_tol(tol)
@@ -281,7 +305,20 @@ def policy_iteration(
         number of states whose action changed at each improvement (its last entry is 0
         when converged), so the number of improvements that changed the policy is
         ``(res.history > 0).sum()``.
+
+    A :class:`~policylab.mdp.PostDecisionMDP` is solved by
+    :func:`policylab.planning.postdecision.policy_iteration` (exact evaluation, starting
+    greedy in r(s, a)).
     """
+    if isinstance(mdp, PostDecisionMDP):
+        _no_postdecision_option(
+            evaluation=evaluation == "exact", policy=policy is None, solver=solver == "auto"
+        )
+        from policylab.planning import postdecision
+
+        return postdecision.policy_iteration(
+            mdp, gamma=gamma, max_iter=max_iter, tol=tol, tie_tol=tie_tol
+        )
     t0 = time.perf_counter()
     g = check_gamma(mdp, gamma)
     check_positive_int(max_iter, "max_iter")
@@ -446,7 +483,16 @@ def modified_policy_iteration(
 
     Returns:
         A :class:`PlanningResult`; ``history`` holds max_s |T v_k(s) - v_k(s)|.
+
+    A :class:`~policylab.mdp.PostDecisionMDP` is solved by the same rules through its
+    post-decision values (:mod:`policylab.planning.postdecision`).
     """
+    if isinstance(mdp, PostDecisionMDP):
+        from policylab.planning import postdecision
+
+        return postdecision.modified_policy_iteration(
+            mdp, m=m, tol=tol, gamma=gamma, max_iter=max_iter, v0=v0, tie_tol=tie_tol
+        )
     t0 = time.perf_counter()
     g = check_gamma(mdp, gamma)
     t = check_tol(tol)

@@ -89,7 +89,10 @@ def test_kronecker_kernel_equals_the_formed_product() -> None:
     facs = [f / f.sum(axis=1, keepdims=True) for f in (f1, f2, f3)]
     full = np.kron(np.kron(facs[0], facs[1]), facs[2])
     v = rng.random(full.shape[1])
-    for kern in (PostDecisionKernel(*facs), PostDecisionKernel(facs[0], sp.csr_array(facs[1]), facs[2])):
+    for kern in (
+        PostDecisionKernel(*facs),
+        PostDecisionKernel(facs[0], sp.csr_array(facs[1]), facs[2]),
+    ):
         np.testing.assert_allclose(kern.expect(v), full @ v, rtol=1e-13)
         np.testing.assert_allclose(kern.to_csr().toarray(), full, rtol=1e-13)
         ys = np.array([0, 7, 29])

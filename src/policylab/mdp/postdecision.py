@@ -34,7 +34,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import scipy.sparse as sp
 
-from policylab.exceptions import InvalidArgumentError, InvalidMDPError, ShapeError, UnknownLabelError
+from policylab.exceptions import (
+    InvalidArgumentError,
+    InvalidMDPError,
+    ShapeError,
+    UnknownLabelError,
+)
 from policylab.mdp.finite import PROB_TOL, FiniteMDP
 from policylab.validation import check_gamma
 
@@ -59,12 +64,16 @@ def _as_matrix(m: Any, what: str) -> NDArray[np.float64] | sp.csr_array:
         try:
             mat = np.ascontiguousarray(m, dtype=np.float64)
         except (TypeError, ValueError) as exc:
-            raise InvalidMDPError(f"{what} must be a matrix of numbers; got {type(m).__name__}") from exc
+            raise InvalidMDPError(
+                f"{what} must be a matrix of numbers; got {type(m).__name__}"
+            ) from exc
         data = mat
     if mat.ndim != 2 or 0 in mat.shape:
         raise ShapeError(f"{what} must be a non-empty 2-D matrix; got shape {mat.shape}")
     if not np.all(np.isfinite(data)) or np.any(data < 0):
-        raise InvalidMDPError(f"{what} has negative or non-finite entries; probabilities must be >= 0")
+        raise InvalidMDPError(
+            f"{what} has negative or non-finite entries; probabilities must be >= 0"
+        )
     sums = np.asarray(mat.sum(axis=1)).ravel()
     bad = np.flatnonzero(np.abs(sums - 1.0) > PROB_TOL)
     if bad.size:
@@ -121,7 +130,9 @@ class PostDecisionKernel:
         """Bytes held by the factors."""
         total = 0
         for f in self.factors:
-            total += f.data.nbytes + f.indices.nbytes + f.indptr.nbytes if sp.issparse(f) else f.nbytes
+            total += (
+                f.data.nbytes + f.indices.nbytes + f.indptr.nbytes if sp.issparse(f) else f.nbytes
+            )
         return total
 
     def expect(self, v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -178,7 +189,8 @@ class PostDecisionKernel:
 
     def __repr__(self) -> str:
         kinds = " (x) ".join(
-            f"{'sparse' if sp.issparse(f) else 'dense'} {f.shape[0]}x{f.shape[1]}" for f in self.factors
+            f"{'sparse' if sp.issparse(f) else 'dense'} {f.shape[0]}x{f.shape[1]}"
+            for f in self.factors
         )
         return f"PostDecisionKernel({kinds})"
 
@@ -196,7 +208,11 @@ class _IndexLabels(Sequence[Hashable]):
         return range(self._n)[i]
 
     def index(self, value: Any, start: int = 0, stop: int | None = None) -> int:
-        if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and 0 <= value < self._n:
+        if (
+            isinstance(value, (int, np.integer))
+            and not isinstance(value, bool)
+            and 0 <= value < self._n
+        ):
             return int(value)
         raise ValueError(value)
 
@@ -240,7 +256,9 @@ class PostDecisionMDP:
         name: str = "post-decision-mdp",
         meta: Mapping[str, Any] | None = None,
     ) -> None:
-        self.kernel = kernel if isinstance(kernel, PostDecisionKernel) else PostDecisionKernel(kernel)
+        self.kernel = (
+            kernel if isinstance(kernel, PostDecisionKernel) else PostDecisionKernel(kernel)
+        )
         f = np.asarray(post)
         if f.ndim != 2 or 0 in f.shape:
             raise ShapeError(f"post must be a non-empty (S, A) array; got shape {f.shape}")
@@ -355,7 +373,7 @@ class PostDecisionMDP:
     def available_actions(self, state: Hashable) -> list[Hashable]:
         """A(s): the labels of the actions available in ``state``."""
         s = self.state_index(state)
-        return [self.actions[a] for a in np.flatnonzero(self.action_mask[s])]
+        return [self.actions[int(a)] for a in np.flatnonzero(self.action_mask[s])]
 
     # ---------------------------------------------------------------- the tabular model
     @property

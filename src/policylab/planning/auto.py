@@ -66,7 +66,7 @@ METHODS = {
 }
 
 
-def choose_method(mdp: FiniteMDP, gamma: float | None = None) -> tuple[str, str]:
+def choose_method(mdp: FiniteMDP | PostDecisionMDP, gamma: float | None = None) -> tuple[str, str]:
     """The method ``solve(mdp, method="auto")`` uses, and why (see the module docstring).
 
     Returns:
@@ -115,7 +115,7 @@ def choose_method(mdp: FiniteMDP, gamma: float | None = None) -> tuple[str, str]
 
 
 def solve(
-    mdp: FiniteMDP,
+    mdp: FiniteMDP | PostDecisionMDP,
     method: str = "auto",
     *,
     tol: float = 1e-8,
@@ -138,7 +138,7 @@ def solve(
     """
     if not isinstance(method, str) or method not in METHODS:
         raise InvalidArgumentError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
-    g = check_gamma(mdp, gamma)
+    g = check_gamma(mdp, gamma)  # type: ignore[arg-type]  # (it reads mdp.gamma only)
     t = check_tol(tol)
     chosen, reason = choose_method(mdp, g) if method == "auto" else (method, "")
     if isinstance(mdp, PostDecisionMDP) and chosen not in ("vi", "pi", "mpi"):
@@ -152,7 +152,7 @@ def solve(
         res = value_iteration(mdp, tol=t, gamma=g, gauss_seidel=True, order="auto")
     elif chosen == "mpi":
         res = modified_policy_iteration(mdp, m="adaptive", tol=t, gamma=g)
-    elif chosen == "lp":
+    elif chosen == "lp" and not isinstance(mdp, PostDecisionMDP):
         res = linear_programming(mdp, gamma=g)
     else:
         res = policy_iteration(mdp, gamma=g)

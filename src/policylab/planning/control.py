@@ -92,7 +92,7 @@ def _no_postdecision_option(**defaults: bool) -> None:
 
 
 def value_iteration(
-    mdp: FiniteMDP,
+    mdp: FiniteMDP | PostDecisionMDP,
     *,
     tol: float = 1e-8,
     gamma: float | None = None,
@@ -266,7 +266,7 @@ def proper_policy(mdp: FiniteMDP) -> Policy:
 
 
 def policy_iteration(
-    mdp: FiniteMDP,
+    mdp: FiniteMDP | PostDecisionMDP,
     *,
     gamma: float | None = None,
     evaluation: str = "exact",
@@ -442,7 +442,7 @@ ADAPTIVE_MAX_M = 1000
 
 
 def modified_policy_iteration(
-    mdp: FiniteMDP,
+    mdp: FiniteMDP | PostDecisionMDP,
     *,
     m: int | str = 10,
     tol: float = 1e-8,

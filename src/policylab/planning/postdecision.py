@@ -58,7 +58,9 @@ DENSE_EVAL_MAX_STATES = 3000
 
 
 @njit(cache=True, nogil=True)
-def _backup(post: Any, R: Any, gamma: float, w: Any, out: Any, act: Any) -> None:  # pragma: no cover
+def _backup(
+    post: Any, R: Any, gamma: float, w: Any, out: Any, act: Any
+) -> None:  # pragma: no cover
     # out[s] = max_a R[s, a] + gamma w[post[s, a]], act[s] the first argmax (R is -inf
     # on unavailable actions, whose post entry is 0).
     S, A = post.shape
@@ -165,7 +167,7 @@ def evaluate_actions(
     if S <= DENSE_EVAL_MAX_STATES:
         M = -gamma * model.kernel.dense_rows(y_pi)
         M[np.arange(S), np.arange(S)] += 1.0
-        v = np.linalg.solve(M, r_pi)
+        v = np.asarray(np.linalg.solve(M, r_pi), dtype=np.float64)
         info["solver"] = "dense LU"
     else:
         from policylab.planning.evaluation import KRYLOV_RTOL, _gmres_refined
@@ -180,7 +182,7 @@ def evaluate_actions(
         v, its, _ = _gmres_refined(op, r_pi, x0, target)
         info["solver"] = "GMRES"
         info["krylov_iterations"] = its
-    res = float(np.abs(r_pi + gamma * model.kernel.expect(v)[y_pi] - v).max())
+    res = float(np.abs(r_pi + gamma * model.kernel.expect(v)[y_pi] - v).max(initial=0.0))
     info["residual"] = res
     info["error_bound"] = res / (1.0 - gamma)
     return v, info
@@ -262,7 +264,9 @@ def modified_policy_iteration(
     v0: ArrayLike | None = None,
     tie_tol: float = DEFAULT_TIE_TOL,
 ) -> PlanningResult:
-    """Modified policy iteration: v_{k+1} = T_{pi_k}^m T v_k, stopped by MacQueen's bounds on T v_k - v_k.
+    """Modified policy iteration v_{k+1} = T_{pi_k}^m T v_k, stopped by MacQueen's bounds.
+
+    The bounds are those of d = T v_k - v_k, whatever m was.
 
     The rules of :func:`policylab.planning.modified_policy_iteration`, adaptive m
     included (the evaluation sweeps go on while the span of their change shrinks and

@@ -174,7 +174,8 @@ def _ranges(n: int, nz: int) -> np.ndarray:
     """The concatenation of arange(min(y, nz)) for y = 0..n-1, without a Python loop."""
     lengths = np.minimum(np.arange(n), nz)
     starts = np.repeat(np.cumsum(lengths) - lengths, lengths)
-    return np.arange(int(lengths.sum())) - starts
+    out: np.ndarray = np.arange(int(lengths.sum())) - starts
+    return out
 
 
 def forest_management(

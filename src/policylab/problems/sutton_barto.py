@@ -222,13 +222,14 @@ def jacks_car_rental(
     if post_decision:
         from policylab.mdp.postdecision import PostDecisionMDP
 
-        m1 = np.minimum(n1[:, None] - moves[None, :], N)
-        m2 = np.minimum(n2[:, None] + moves[None, :], N)
+        mm1 = np.minimum(n1[:, None] - moves[None, :], N)
+        mm2 = np.minimum(n2[:, None] + moves[None, :], N)
         ok = mask
-        post = np.where(ok, np.clip(m1, 0, N) * n + np.clip(m2, 0, N), 0)
-        reward = rent_reward * (E1[np.clip(m1, 0, N)] + E2[np.clip(m2, 0, N)]) - move_cost * np.abs(
-            moves
-        )[None, :]
+        post = np.where(ok, np.clip(mm1, 0, N) * n + np.clip(mm2, 0, N), 0)
+        reward = (
+            rent_reward * (E1[np.clip(mm1, 0, N)] + E2[np.clip(mm2, 0, N)])
+            - move_cost * np.abs(moves)[None, :]
+        )
         return PostDecisionMDP(
             post,
             np.where(ok, reward, 0.0),

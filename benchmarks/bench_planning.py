@@ -387,7 +387,7 @@ def worker(lib: str, fam: str, out: str) -> None:
         sweep["vi"] = lambda: postdecision.optimality_backup(mdp, g, w)
     elif ours_lib:
         from policylab.planning import _kernels, modified_policy_iteration, solve
-        from policylab.planning._kernels import optimality_sweep
+        from policylab.planning._kernels import optimality_values
 
         for name in ("slip-gridworld", "long-chain"):
             warm = pl.problems.get_problem(name)
@@ -416,8 +416,7 @@ def worker(lib: str, fam: str, out: str) -> None:
 
         runs = {m: ours(m) for m in METHODS[lib]}
         w = np.zeros(S)
-        work = np.empty((S, A))
-        sweep["vi"] = lambda: optimality_sweep(mdp, g, w, work)
+        sweep["vi"] = lambda: optimality_values(mdp, g, w)
     elif lib == "quantecon":
         if g >= 1.0:
             results["_skip"] = "gamma = 1: quantecon disables its infinite-horizon methods"

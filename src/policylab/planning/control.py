@@ -35,6 +35,7 @@ from policylab.planning._checks import (
 from policylab.planning._kernels import (
     gauss_seidel_optimality_sweep,
     optimality_sweep,
+    optimality_values,
     policy_matvec,
     termination_distances,
 )
@@ -178,11 +179,8 @@ def value_iteration(
     start[mdp.terminal] = 0.0
     term = mdp.terminal
 
-    work = np.empty((mdp.n_states, mdp.n_actions))  # q, reused by every sweep
-
     def sync(v: NDArray[np.float64]) -> NDArray[np.float64]:
-        out, _ = optimality_sweep(mdp, g, v, work)
-        return out
+        return optimality_values(mdp, g, v)
 
     def gs(v: NDArray[np.float64]) -> float:
         return gauss_seidel_optimality_sweep(mdp, g, v, sweep_order)

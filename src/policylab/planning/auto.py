@@ -27,6 +27,12 @@ measured on families of MDPs, from the problem's size, gamma and structure:
 6. Continuing and large, gamma > 0.99: modified policy iteration with adaptive m
    (partial evaluations carry values further per improvement than single sweeps).
 
+On a :class:`~policylab.mdp.PostDecisionMDP` (a continuing task, gamma < 1) the choice
+is modified policy iteration with adaptive m: a Bellman optimality backup there costs
+one product K v and an (S, A) maximum, a policy's backup the same product and an
+S-long gather, so improvements cost about what evaluation sweeps do and the linear
+solves of policy iteration (GMRES on the same products) do not pay.
+
 ``"mpi"`` is modified policy iteration with adaptive m (see
 :func:`~policylab.planning.modified_policy_iteration`).
 """

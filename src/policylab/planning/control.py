@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -503,46 +504,25 @@ def modified_policy_iteration(
         _require_episodic(mdp, "modified policy iteration")
     S = mdp.n_states
     live = ~mdp.terminal
-    has_terminal = not bool(live.all())
     R = mdp.expected_reward
     v = np.zeros(S) if v0 is None else check_v(mdp, v0, "v0").copy()
     v[mdp.terminal] = 0.0
-    history: list[float] = []
-    converged = False
-    bound: float | None = None
-    residual = np.inf
     rows = np.arange(S)
     work = np.empty((S, mdp.n_actions))  # q, reused by every sweep
-    sweeps: list[int] = []  # evaluation sweeps after each improvement (adaptive m)
-    for _ in range(max_iter):
-        tv, act = optimality_sweep(mdp, g, v, work)
-        d = tv - v
-        residual = float(np.abs(d).max())
-        history.append(residual)
-        if g < 1.0:
-            shift, bound = span_bounds(d[live], g, has_terminal)
-            if bound <= t:
-                tv[live] += shift
-                v = tv
-                converged = True
-                break
-        elif residual <= t:
-            v = tv
-            converged = True
-            break
-        if not np.isfinite(residual):
-            v = tv
-            break
-        v = tv
-        if adaptive or m_fixed:
-            r_pi = R[rows, np.maximum(act, 0)]
-            r_pi[mdp.terminal] = 0.0
-            if adaptive:
-                v, n_eval = _adaptive_evaluation(mdp, act, r_pi, g, v, _span(d[live]), live)
-                sweeps.append(n_eval)
-            else:
-                for _k in range(m_fixed):
-                    v = r_pi + g * policy_matvec(mdp, act, v)
+
+    def optimality(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        return optimality_sweep(mdp, g, x, work)
+
+    def policy_backup(
+        act: NDArray[np.int64],
+    ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+        r_pi = R[rows, np.maximum(act, 0)]
+        r_pi[mdp.terminal] = 0.0
+        return lambda x: r_pi + g * policy_matvec(mdp, act, x)
+
+    v, history, sweeps, converged, bound, residual = mpi_iterations(
+        optimality, policy_backup, v, live, g, t, max_iter, None if adaptive else m_fixed
+    )
     if not converged:
         warnings.warn(
             f"modified policy iteration stopped after {len(history)} improvements (max_iter): "
@@ -572,23 +552,84 @@ def _span(x: NDArray[np.float64]) -> float:
     return float(x.max() - x.min()) if x.size else 0.0
 
 
-def _adaptive_evaluation(
-    mdp: FiniteMDP,
-    act: NDArray[np.int64],
-    r_pi: NDArray[np.float64],
+def mpi_iterations(
+    optimality: Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.int64]]],
+    policy_backup: Callable[
+        [NDArray[np.int64]], Callable[[NDArray[np.float64]], NDArray[np.float64]]
+    ],
+    v: NDArray[np.float64],
+    live: NDArray[np.bool_],
     gamma: float,
+    tol: float,
+    max_iter: int,
+    m: int | None,
+) -> tuple[NDArray[np.float64], list[float], list[int], bool, float | None, float]:
+    """The loop of :func:`modified_policy_iteration`, for any model's two backups.
+
+    Args:
+        optimality: v -> (T v, a greedy action per state).
+        policy_backup: actions -> the policy's backup x -> r_pi + gamma P_pi x.
+        v: Starting values.
+        live: Non-terminal states.
+        gamma: Discount rate.
+        tol: Accuracy asked of v (MacQueen's bounds on d = T v_k - v_k, gamma < 1).
+        max_iter: The most improvements.
+        m: Evaluation sweeps per improvement; None for the adaptive rule.
+
+    Returns:
+        ``(v, history of max|d|, evaluation sweeps of each improvement (adaptive),
+        converged, error bound, last max|d|)``.
+    """
+    has_terminal = not bool(live.all())
+    history: list[float] = []
+    sweeps: list[int] = []
+    converged = False
+    bound: float | None = None
+    residual = np.inf
+    for _ in range(max_iter):
+        tv, act = optimality(v)
+        d = tv - v
+        residual = float(np.abs(d).max())
+        history.append(residual)
+        if gamma < 1.0:
+            shift, bound = span_bounds(d[live], gamma, has_terminal)
+            if bound <= tol:
+                tv[live] += shift
+                v = tv
+                converged = True
+                break
+        elif residual <= tol:
+            v = tv
+            converged = True
+            break
+        if not np.isfinite(residual):
+            v = tv
+            break
+        v = tv
+        if m is None:
+            v, n_eval = _adaptive_evaluation(policy_backup(act), v, _span(d[live]), live)
+            sweeps.append(n_eval)
+        elif m:
+            backup = policy_backup(act)
+            for _k in range(m):
+                v = backup(v)
+    return v, history, sweeps, converged, bound if gamma < 1.0 else None, residual
+
+
+def _adaptive_evaluation(
+    backup: Callable[[NDArray[np.float64]], NDArray[np.float64]],
     v: NDArray[np.float64],
     residual_span: float,
     live: NDArray[np.bool_],
 ) -> tuple[NDArray[np.float64], int]:
-    """Sweeps v <- r_pi + gamma P_pi v by the adaptive rule of :func:`modified_policy_iteration`.
+    """Sweeps v <- backup(v) = r_pi + gamma P_pi v by :func:`modified_policy_iteration`'s rule.
 
     Returns the values and the number of sweeps made.
     """
     target = ADAPTIVE_ETA * residual_span
     last = np.inf
     for j in range(1, ADAPTIVE_MAX_M + 1):
-        new = r_pi + gamma * policy_matvec(mdp, act, v)
+        new = backup(v)
         change = _span((new - v)[live])
         v = new
         if change <= target or change > ADAPTIVE_STALL * last:

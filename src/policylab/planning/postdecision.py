@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -32,7 +33,7 @@ from numba import njit, prange
 from policylab.exceptions import InvalidArgumentError, NotConvergedWarning
 from policylab.planning._checks import check_positive_int, check_tol, check_v
 from policylab.planning._kernels import _parallel
-from policylab.planning._sweeps import run_sweeps, span_bounds
+from policylab.planning._sweeps import run_sweeps
 from policylab.planning.bellman import DEFAULT_TIE_TOL, greedy_policy
 from policylab.planning.result import PlanningResult
 
@@ -273,7 +274,7 @@ def modified_policy_iteration(
     exceeds a tenth of the improvement's residual span), with both backups computed
     through W = K v.
     """
-    from policylab.planning.control import ADAPTIVE_ETA, ADAPTIVE_MAX_M, ADAPTIVE_STALL, _span
+    from policylab.planning.control import mpi_iterations
 
     t0 = time.perf_counter()
     g = _check_gamma(model, gamma)
@@ -283,40 +284,24 @@ def modified_policy_iteration(
     if adaptive and m != "adaptive":
         raise InvalidArgumentError(f"m must be an integer >= 0 or 'adaptive'; got {m!r}")
     m_fixed = 0 if adaptive else check_positive_int(m, "m", minimum=0)  # type: ignore[arg-type]
-    v = np.zeros(model.n_states) if v0 is None else check_v(model, v0, "v0").copy()  # type: ignore[arg-type]
-    history: list[float] = []
-    sweeps: list[int] = []
-    converged = False
-    bound: float | None = None
-    residual = np.inf
-    for _ in range(max_iter):
-        tv, act = optimality_backup(model, g, v)
-        d = tv - v
-        residual = float(np.abs(d).max())
-        history.append(residual)
-        shift, bound = span_bounds(d, g, False)
-        v = tv
-        if bound <= t:
-            v += shift
-            converged = True
-            break
-        if not np.isfinite(residual):
-            break
+    start = np.zeros(model.n_states) if v0 is None else check_v(model, v0, "v0").copy()  # type: ignore[arg-type]
+
+    def policy_backup(
+        act: NDArray[np.int64],
+    ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
         r_pi, y_pi = _policy_parts(model, act)
-        if adaptive:
-            target, last, n = ADAPTIVE_ETA * _span(d), np.inf, ADAPTIVE_MAX_M
-            for j in range(1, ADAPTIVE_MAX_M + 1):
-                new = r_pi + g * model.kernel.expect(v)[y_pi]
-                change = _span(new - v)
-                v = new
-                if change <= target or change > ADAPTIVE_STALL * last:
-                    n = j
-                    break
-                last = change
-            sweeps.append(n)
-        else:
-            for _k in range(m_fixed):
-                v = r_pi + g * model.kernel.expect(v)[y_pi]
+        return lambda x: r_pi + g * model.kernel.expect(x)[y_pi]
+
+    v, history, sweeps, converged, bound, residual = mpi_iterations(
+        lambda x: optimality_backup(model, g, x),
+        policy_backup,
+        start,
+        np.ones(model.n_states, dtype=bool),
+        g,
+        t,
+        max_iter,
+        None if adaptive else m_fixed,
+    )
     if not converged:
         warnings.warn(
             f"modified policy iteration stopped after {len(history)} improvements (max_iter): "

@@ -494,12 +494,7 @@ def modified_policy_iteration(
         )
     t0 = time.perf_counter()
     g = check_gamma(mdp, gamma)
-    t = check_tol(tol)
-    check_positive_int(max_iter, "max_iter")
-    adaptive = isinstance(m, str)
-    if adaptive and m != "adaptive":
-        raise InvalidArgumentError(f"m must be an integer >= 0 or 'adaptive'; got {m!r}")
-    m_fixed = 0 if adaptive else check_positive_int(m, "m", minimum=0)  # type: ignore[arg-type]
+    t, m_sweeps = mpi_arguments(tol, max_iter, m)
     if g == 1.0:
         _require_episodic(mdp, "modified policy iteration")
     S = mdp.n_states
@@ -521,7 +516,7 @@ def modified_policy_iteration(
         return lambda x: r_pi + g * policy_matvec(mdp, act, x)
 
     v, history, sweeps, converged, bound, residual = mpi_iterations(
-        optimality, policy_backup, v, live, g, t, max_iter, None if adaptive else m_fixed
+        optimality, policy_backup, v, live, g, t, max_iter, m_sweeps
     )
     if not converged:
         warnings.warn(
@@ -543,8 +538,19 @@ def modified_policy_iteration(
         residual=residual,
         error_bound=bound if g < 1.0 else None,
         seconds=time.perf_counter() - t0,
-        info={"evaluation_sweeps": sweeps} if adaptive else {},
+        info={"evaluation_sweeps": sweeps} if m_sweeps is None else {},
     )
+
+
+def mpi_arguments(tol: float, max_iter: int, m: int | str) -> tuple[float, int | None]:
+    """Checked ``tol`` and ``max_iter`` of modified policy iteration, and m (None: adaptive)."""
+    t = check_tol(tol)
+    check_positive_int(max_iter, "max_iter")
+    if isinstance(m, str):
+        if m != "adaptive":
+            raise InvalidArgumentError(f"m must be an integer >= 0 or 'adaptive'; got {m!r}")
+        return t, None
+    return t, check_positive_int(m, "m", minimum=0)
 
 
 def _span(x: NDArray[np.float64]) -> float:

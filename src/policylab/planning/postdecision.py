@@ -274,16 +274,11 @@ def modified_policy_iteration(
     exceeds a tenth of the improvement's residual span), with both backups computed
     through W = K v.
     """
-    from policylab.planning.control import mpi_iterations
+    from policylab.planning.control import mpi_arguments, mpi_iterations
 
     t0 = time.perf_counter()
     g = _check_gamma(model, gamma)
-    t = check_tol(tol)
-    check_positive_int(max_iter, "max_iter")
-    adaptive = isinstance(m, str)
-    if adaptive and m != "adaptive":
-        raise InvalidArgumentError(f"m must be an integer >= 0 or 'adaptive'; got {m!r}")
-    m_fixed = 0 if adaptive else check_positive_int(m, "m", minimum=0)  # type: ignore[arg-type]
+    t, m_sweeps = mpi_arguments(tol, max_iter, m)
     start = np.zeros(model.n_states) if v0 is None else check_v(model, v0, "v0").copy()  # type: ignore[arg-type]
 
     def policy_backup(
@@ -300,7 +295,7 @@ def modified_policy_iteration(
         g,
         t,
         max_iter,
-        None if adaptive else m_fixed,
+        m_sweeps,
     )
     if not converged:
         warnings.warn(
@@ -321,7 +316,7 @@ def modified_policy_iteration(
         residual=residual,
         error_bound=bound,
         seconds=time.perf_counter() - t0,
-        info={"evaluation_sweeps": sweeps} if adaptive else {},
+        info={"evaluation_sweeps": sweeps} if m_sweeps is None else {},
     )
 
 

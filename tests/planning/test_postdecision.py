@@ -136,6 +136,13 @@ def test_tiny_model_matches_a_linear_solve() -> None:
     P = K[model.post[np.arange(2), acts]]
     r = model.reward[np.arange(2), acts]
     np.testing.assert_allclose(res.v, np.linalg.solve(np.eye(2) - 0.9 * P, r), atol=1e-12)
+    v_pi = pl.evaluate_policy(model, res.policy, return_result=True)
+    np.testing.assert_allclose(v_pi.v, res.v, atol=1e-12)
+    assert v_pi.error_bound is not None and v_pi.error_bound < 1e-12
+    with pytest.raises(InvalidArgumentError, match="deterministic"):
+        pl.evaluate_policy(model, pl.Policy.uniform(model))
+    with pytest.raises(InvalidArgumentError, match="exact"):
+        pl.evaluate_policy(model, res.policy, method="iterative")
     assert model.available_actions(1) == [0, 1]
     assert "PostDecisionMDP" in repr(model)
 

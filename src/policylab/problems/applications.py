@@ -143,16 +143,24 @@ def _inventory_post_decision(
     stock_left = d - sales  # E[(y - D)^+]
     lost = np.maximum(demand_mean - sales, 0.0)  # E[(D - y)^+]
     g = price * sales - holding_cost * stock_left - lost_sale_cost * lost
-    # kernel: y -> y - d (d < y) with p(d), y -> 0 with P(D >= y); exact zeros left out
+    # kernel, row y: s' = 0 with P(D >= y), then s' = y - d for the demands d < y, in
+    # ascending s' (demands whose probability underflows to 0 are left out)
     nz = int(np.flatnonzero(pmf > 0).max()) + 1
-    ys = np.repeat(d, np.minimum(d, nz))
-    ds = _ranges(n, nz)
-    rows = np.concatenate([ys, d])
-    cols = np.concatenate([ys - ds, np.zeros(n, dtype=np.int64)])
-    vals = np.concatenate([pmf[ds], tail])
-    K = sp.csr_array((vals, (rows, cols)), shape=(n, n))
-    K.eliminate_zeros()
-    K = sp.csr_array(sp.diags_array(1.0 / np.asarray(K.sum(axis=1)).ravel()) @ K)
+    m = np.minimum(d, nz)  # demands d < y kept in row y
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(1 + m, out=indptr[1:])
+    within = _ranges(n, nz)  # 0..m_y - 1 for each row y
+    first = np.repeat(indptr[:-1] + 1, m)  # where each row's demand entries start
+    cols = np.zeros(int(indptr[-1]), dtype=np.int64)
+    vals = np.empty(int(indptr[-1]))
+    cols[indptr[:-1]] = 0
+    vals[indptr[:-1]] = tail
+    ys = np.repeat(d, m)
+    lo = ys - np.repeat(m, m) + 1  # the smallest s' = y - (m_y - 1)
+    cols[first + within] = lo + within
+    vals[first + within] = pmf[np.repeat(m, m) - 1 - within]
+    vals /= np.repeat(np.add.reduceat(vals, indptr[:-1]), 1 + m)
+    K = sp.csr_array((vals, cols, indptr), shape=(n, n))
     s = d[:, None]
     a = np.arange(max_order + 1)[None, :]
     mask = s + a <= capacity

@@ -148,3 +148,30 @@ def test_back_substitution_solves_acyclic_policies_exactly() -> None:
     acts = np.zeros(mdp.n_states, dtype=np.int64)
     _, info = solve_policy_system(mdp, None, mdp.expected_reward[:, 0], 0.9, actions=acts)
     assert info["solver"] != "direct (back-substitution)"
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_fused_optimality_values_equal_the_two_pass_sweep(
+    threads: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # value iteration's one-pass T v (max taken as the rows are summed, -inf folded
+    # into r) against the q-then-max sweep, bit for bit, with unavailable actions and
+    # terminal states present; threaded too
+    if threads > numba.config.NUMBA_NUM_THREADS:
+        pytest.skip("needs 2 numba threads")
+    monkeypatch.setattr(_kernels, "PARALLEL_MIN_OUTCOMES", 0 if threads > 1 else 10**12)
+    before = numba.get_num_threads()
+    numba.set_num_threads(threads)
+    try:
+        for mdp in (
+            slip_gridworld(8, 0.1, gamma=0.95),
+            small_random_mdp(7, 30, 4, 0.9, episodic=True),
+            jacks_car_rental(max_cars=4, max_move=2),
+        ):
+            _kernels._SHARED[mdp] = None  # the plain path (shared rows tested above)
+            v = np.random.default_rng(3).normal(size=mdp.n_states) * 10
+            v[mdp.terminal] = 0.0
+            two_pass, _ = _kernels.optimality_sweep(mdp, 0.95, v)
+            np.testing.assert_array_equal(_kernels.optimality_values(mdp, 0.95, v), two_pass)
+    finally:
+        numba.set_num_threads(before)

@@ -235,10 +235,12 @@ class Policy:
 
 def _require_mdp(mdp: Any) -> None:
     from policylab.mdp.finite import FiniteMDP
+    from policylab.mdp.postdecision import PostDecisionMDP
 
-    if not isinstance(mdp, FiniteMDP):
+    if not isinstance(mdp, FiniteMDP | PostDecisionMDP):
         raise InvalidPolicyError(
-            f"a policy is built for a FiniteMDP; got {type(mdp).__name__} {mdp!r:.60}"
+            f"a policy is built for a FiniteMDP or a PostDecisionMDP; got "
+            f"{type(mdp).__name__} {mdp!r:.60}"
         )
 
 

@@ -22,6 +22,7 @@ __all__ = [
     "gauss_seidel_expectation_sweep",
     "gauss_seidel_optimality_sweep",
     "optimality_sweep",
+    "optimality_values",
     "policy_matvec",
     "progressing_actions",
     "q_values",
@@ -284,6 +285,40 @@ def _policy_matvec_par(
         out[s] = 0.0 if terminal[s] else _row_dot(indptr, nxt, probs, s * n_actions + act[s], x)
 
 
+# T v without its argmax (value iteration's synchronous sweep): one pass over the rows,
+# the maximum taken as each row's sum is done (``max`` compiles to a branch-free
+# select, so successive rows' loads still overlap); ``Rm`` is the flat r(s, a) with
+# -inf on unavailable actions, so no mask is read either.
+
+
+@njit(cache=True, nogil=True)
+def _optimality_values(
+    indptr: Any, nxt: Any, probs: Any, Rm: Any, terminal: Any, gamma: float, v: Any, out: Any
+) -> None:  # pragma: no cover - compiled
+    S = terminal.shape[0]
+    A = Rm.shape[0] // S
+    for s in range(S):
+        best = -np.inf
+        for a in range(A):
+            row = s * A + a
+            best = max(best, Rm[row] + gamma * _row_dot(indptr, nxt, probs, row, v))
+        out[s] = 0.0 if terminal[s] else best
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _optimality_values_par(
+    indptr: Any, nxt: Any, probs: Any, Rm: Any, terminal: Any, gamma: float, v: Any, out: Any
+) -> None:  # pragma: no cover - compiled
+    S = terminal.shape[0]
+    A = Rm.shape[0] // S
+    for s in prange(S):
+        best = -np.inf
+        for a in range(A):
+            row = s * A + a
+            best = max(best, Rm[row] + gamma * _row_dot(indptr, nxt, probs, row, v))
+        out[s] = 0.0 if terminal[s] else best
+
+
 def _parallel(n_reads: int) -> bool:
     """Whether a pass reading this many outcomes (or q entries) goes to the threaded kernels."""
     return n_reads >= PARALLEL_MIN_OUTCOMES and numba.get_num_threads() > 1
@@ -346,6 +381,44 @@ def optimality_sweep(
     row_max = _row_max_par if _parallel(q.size) else _row_max
     row_max(q.reshape(-1), mdp.n_actions, mdp.terminal, out, act)
     return out, act
+
+
+_MASKED: weakref.WeakKeyDictionary[Any, np.ndarray] = weakref.WeakKeyDictionary()
+
+
+def _masked_flat_reward(mdp: Any) -> np.ndarray:
+    """r(s, a) with -inf where a is not in A(s), flat (S * A,); kept with the model."""
+    found = _MASKED.get(mdp)
+    if found is None:
+        found = np.where(mdp.action_mask, _reward(mdp), -np.inf).reshape(-1)
+        _MASKED[mdp] = found
+    return found
+
+
+def optimality_values(mdp: Any, gamma: float, v: np.ndarray) -> np.ndarray:
+    """(T v)(s) = max_a q(s, a) (0 on terminal states), without the argmax.
+
+    Value iteration's synchronous sweep. One compiled pass over the outcome table that
+    takes each state's maximum as its rows are summed, with no (S, A) temporary, where
+    :func:`optimality_sweep` writes q and then reads it back; on models whose rows
+    repeat (see :func:`shared_rows`) it is :func:`optimality_sweep`'s value. Either way
+    the numbers are the same, bit for bit.
+    """
+    if shared_rows(mdp) is not None:
+        return optimality_sweep(mdp, gamma, v)[0]
+    out = np.empty(mdp.n_states)
+    kernel = _optimality_values_par if _parallel(mdp.n_outcomes) else _optimality_values
+    kernel(
+        mdp.indptr,
+        mdp.next_states,
+        mdp.probs,
+        _masked_flat_reward(mdp),
+        mdp.terminal,
+        gamma,
+        np.ascontiguousarray(v, dtype=np.float64),
+        out,
+    )
+    return out
 
 
 def policy_matvec(mdp: Any, actions: np.ndarray, x: np.ndarray) -> np.ndarray:

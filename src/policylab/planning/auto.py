@@ -27,6 +27,12 @@ measured on families of MDPs, from the problem's size, gamma and structure:
 6. Continuing and large, gamma > 0.99: modified policy iteration with adaptive m
    (partial evaluations carry values further per improvement than single sweeps).
 
+On a :class:`~policylab.mdp.PostDecisionMDP` (a continuing task, gamma < 1) the choice
+is modified policy iteration with adaptive m: a Bellman optimality backup there costs
+one product K v and an (S, A) maximum, a policy's backup the same product and an
+S-long gather, so improvements cost about what evaluation sweeps do and the linear
+solves of policy iteration (GMRES on the same products) do not pay.
+
 ``"mpi"`` is modified policy iteration with adaptive m (see
 :func:`~policylab.planning.modified_policy_iteration`).
 """
@@ -37,6 +43,7 @@ import dataclasses
 from typing import TYPE_CHECKING
 
 from policylab.exceptions import InvalidArgumentError
+from policylab.mdp.postdecision import PostDecisionMDP
 from policylab.planning._checks import check_gamma, check_tol
 from policylab.planning._kernels import shared_rows
 from policylab.planning.control import (
@@ -65,13 +72,17 @@ METHODS = {
 }
 
 
-def choose_method(mdp: FiniteMDP, gamma: float | None = None) -> tuple[str, str]:
+def choose_method(mdp: FiniteMDP | PostDecisionMDP, gamma: float | None = None) -> tuple[str, str]:
     """The method ``solve(mdp, method="auto")`` uses, and why (see the module docstring).
 
     Returns:
         ``(method, reason)``: a key of :data:`METHODS` other than ``"auto"``, and one
         sentence saying why it suits this MDP.
     """
+    if isinstance(mdp, PostDecisionMDP):
+        from policylab.planning import postdecision
+
+        return postdecision.choose_method(mdp, gamma)
     g = check_gamma(mdp, gamma)
     n_live = int((~mdp.terminal).sum())
     if mdp.terminal.any() and _all_reach_terminal(mdp):
@@ -110,7 +121,7 @@ def choose_method(mdp: FiniteMDP, gamma: float | None = None) -> tuple[str, str]
 
 
 def solve(
-    mdp: FiniteMDP,
+    mdp: FiniteMDP | PostDecisionMDP,
     method: str = "auto",
     *,
     tol: float = 1e-8,
@@ -133,16 +144,21 @@ def solve(
     """
     if not isinstance(method, str) or method not in METHODS:
         raise InvalidArgumentError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
-    g = check_gamma(mdp, gamma)
+    g = check_gamma(mdp, gamma)  # type: ignore[arg-type]  # (it reads mdp.gamma only)
     t = check_tol(tol)
     chosen, reason = choose_method(mdp, g) if method == "auto" else (method, "")
+    if isinstance(mdp, PostDecisionMDP) and chosen not in ("vi", "pi", "mpi"):
+        raise InvalidArgumentError(
+            f"method {chosen!r} needs a FiniteMDP's outcome table; a PostDecisionMDP is solved "
+            "by 'auto', 'vi', 'pi' or 'mpi' (or solve model.to_finite_mdp())"
+        )
     if chosen == "vi":
         res = value_iteration(mdp, tol=t, gamma=g)
     elif chosen == "vi-gs":
         res = value_iteration(mdp, tol=t, gamma=g, gauss_seidel=True, order="auto")
     elif chosen == "mpi":
         res = modified_policy_iteration(mdp, m="adaptive", tol=t, gamma=g)
-    elif chosen == "lp":
+    elif chosen == "lp" and not isinstance(mdp, PostDecisionMDP):
         res = linear_programming(mdp, gamma=g)
     else:
         res = policy_iteration(mdp, gamma=g)

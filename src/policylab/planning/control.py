@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -21,6 +22,7 @@ import scipy.sparse as sp
 
 from policylab.exceptions import InvalidArgumentError, InvalidMDPError, NotConvergedWarning
 from policylab.mdp.policy import Policy
+from policylab.mdp.postdecision import PostDecisionMDP
 from policylab.planning._checks import (
     PolicyLike,
     as_policy,
@@ -34,6 +36,7 @@ from policylab.planning._checks import (
 from policylab.planning._kernels import (
     gauss_seidel_optimality_sweep,
     optimality_sweep,
+    optimality_values,
     policy_matvec,
     termination_distances,
 )
@@ -80,8 +83,18 @@ def _require_episodic(mdp: FiniteMDP, what: str) -> None:
     raise_if_stuck(mdp, stuck, f"{what} (under any policy)", InvalidMDPError)
 
 
+def _no_postdecision_option(**defaults: bool) -> None:
+    """Refuse tabular-only options (each given as "is it at its default?") on a PostDecisionMDP."""
+    given = [name for name, ok in defaults.items() if not ok]
+    if given:
+        raise InvalidArgumentError(
+            f"{', '.join(given)} applies to a FiniteMDP's outcome table only, not to a "
+            "PostDecisionMDP; leave it at its default (or solve model.to_finite_mdp())"
+        )
+
+
 def value_iteration(
-    mdp: FiniteMDP,
+    mdp: FiniteMDP | PostDecisionMDP,
     *,
     tol: float = 1e-8,
     gamma: float | None = None,
@@ -132,7 +145,20 @@ def value_iteration(
 
     Returns:
         A :class:`PlanningResult`; ``history`` holds max_s |d(s)| of each sweep.
+
+    A :class:`~policylab.mdp.PostDecisionMDP` is solved by synchronous sweeps through its
+    post-decision values (see :mod:`policylab.planning.postdecision`), with the same
+    stopping rule and bound.
     """
+    if isinstance(mdp, PostDecisionMDP):
+        _no_postdecision_option(
+            gauss_seidel=not gauss_seidel, order=isinstance(order, str) and order == "auto"
+        )
+        from policylab.planning import postdecision
+
+        return postdecision.value_iteration(
+            mdp, tol=tol, gamma=gamma, max_iter=max_iter, v0=v0, tie_tol=tie_tol
+        )
     t0 = time.perf_counter()
     g = check_gamma(mdp, gamma)
     t = check_tol(tol)
@@ -154,11 +180,8 @@ def value_iteration(
     start[mdp.terminal] = 0.0
     term = mdp.terminal
 
-    work = np.empty((mdp.n_states, mdp.n_actions))  # q, reused by every sweep
-
     def sync(v: NDArray[np.float64]) -> NDArray[np.float64]:
-        out, _ = optimality_sweep(mdp, g, v, work)
-        return out
+        return optimality_values(mdp, g, v)
 
     def gs(v: NDArray[np.float64]) -> float:
         return gauss_seidel_optimality_sweep(mdp, g, v, sweep_order)
@@ -242,7 +265,7 @@ def proper_policy(mdp: FiniteMDP) -> Policy:
 
 
 def policy_iteration(
-    mdp: FiniteMDP,
+    mdp: FiniteMDP | PostDecisionMDP,
     *,
     gamma: float | None = None,
     evaluation: str = "exact",
@@ -281,7 +304,20 @@ def policy_iteration(
         number of states whose action changed at each improvement (its last entry is 0
         when converged), so the number of improvements that changed the policy is
         ``(res.history > 0).sum()``.
+
+    A :class:`~policylab.mdp.PostDecisionMDP` is solved by
+    :func:`policylab.planning.postdecision.policy_iteration` (exact evaluation, starting
+    greedy in r(s, a)).
     """
+    if isinstance(mdp, PostDecisionMDP):
+        _no_postdecision_option(
+            evaluation=evaluation == "exact", policy=policy is None, solver=solver == "auto"
+        )
+        from policylab.planning import postdecision
+
+        return postdecision.policy_iteration(
+            mdp, gamma=gamma, max_iter=max_iter, tol=tol, tie_tol=tie_tol
+        )
     t0 = time.perf_counter()
     g = check_gamma(mdp, gamma)
     check_positive_int(max_iter, "max_iter")
@@ -405,7 +441,7 @@ ADAPTIVE_MAX_M = 1000
 
 
 def modified_policy_iteration(
-    mdp: FiniteMDP,
+    mdp: FiniteMDP | PostDecisionMDP,
     *,
     m: int | str = 10,
     tol: float = 1e-8,
@@ -446,59 +482,42 @@ def modified_policy_iteration(
 
     Returns:
         A :class:`PlanningResult`; ``history`` holds max_s |T v_k(s) - v_k(s)|.
+
+    A :class:`~policylab.mdp.PostDecisionMDP` is solved by the same rules through its
+    post-decision values (:mod:`policylab.planning.postdecision`).
     """
+    if isinstance(mdp, PostDecisionMDP):
+        from policylab.planning import postdecision
+
+        return postdecision.modified_policy_iteration(
+            mdp, m=m, tol=tol, gamma=gamma, max_iter=max_iter, v0=v0, tie_tol=tie_tol
+        )
     t0 = time.perf_counter()
     g = check_gamma(mdp, gamma)
-    t = check_tol(tol)
-    check_positive_int(max_iter, "max_iter")
-    adaptive = isinstance(m, str)
-    if adaptive and m != "adaptive":
-        raise InvalidArgumentError(f"m must be an integer >= 0 or 'adaptive'; got {m!r}")
-    m_fixed = 0 if adaptive else check_positive_int(m, "m", minimum=0)  # type: ignore[arg-type]
+    t, m_sweeps = mpi_arguments(tol, max_iter, m)
     if g == 1.0:
         _require_episodic(mdp, "modified policy iteration")
     S = mdp.n_states
     live = ~mdp.terminal
-    has_terminal = not bool(live.all())
     R = mdp.expected_reward
     v = np.zeros(S) if v0 is None else check_v(mdp, v0, "v0").copy()
     v[mdp.terminal] = 0.0
-    history: list[float] = []
-    converged = False
-    bound: float | None = None
-    residual = np.inf
     rows = np.arange(S)
     work = np.empty((S, mdp.n_actions))  # q, reused by every sweep
-    sweeps: list[int] = []  # evaluation sweeps after each improvement (adaptive m)
-    for _ in range(max_iter):
-        tv, act = optimality_sweep(mdp, g, v, work)
-        d = tv - v
-        residual = float(np.abs(d).max())
-        history.append(residual)
-        if g < 1.0:
-            shift, bound = span_bounds(d[live], g, has_terminal)
-            if bound <= t:
-                tv[live] += shift
-                v = tv
-                converged = True
-                break
-        elif residual <= t:
-            v = tv
-            converged = True
-            break
-        if not np.isfinite(residual):
-            v = tv
-            break
-        v = tv
-        if adaptive or m_fixed:
-            r_pi = R[rows, np.maximum(act, 0)]
-            r_pi[mdp.terminal] = 0.0
-            if adaptive:
-                v, n_eval = _adaptive_evaluation(mdp, act, r_pi, g, v, _span(d[live]), live)
-                sweeps.append(n_eval)
-            else:
-                for _k in range(m_fixed):
-                    v = r_pi + g * policy_matvec(mdp, act, v)
+
+    def optimality(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        return optimality_sweep(mdp, g, x, work)
+
+    def policy_backup(
+        act: NDArray[np.int64],
+    ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+        r_pi = R[rows, np.maximum(act, 0)]
+        r_pi[mdp.terminal] = 0.0
+        return lambda x: r_pi + g * policy_matvec(mdp, act, x)
+
+    v, history, sweeps, converged, bound, residual = mpi_iterations(
+        optimality, policy_backup, v, live, g, t, max_iter, m_sweeps
+    )
     if not converged:
         warnings.warn(
             f"modified policy iteration stopped after {len(history)} improvements (max_iter): "
@@ -519,8 +538,19 @@ def modified_policy_iteration(
         residual=residual,
         error_bound=bound if g < 1.0 else None,
         seconds=time.perf_counter() - t0,
-        info={"evaluation_sweeps": sweeps} if adaptive else {},
+        info={"evaluation_sweeps": sweeps} if m_sweeps is None else {},
     )
+
+
+def mpi_arguments(tol: float, max_iter: int, m: int | str) -> tuple[float, int | None]:
+    """Checked ``tol`` and ``max_iter`` of modified policy iteration, and m (None: adaptive)."""
+    t = check_tol(tol)
+    check_positive_int(max_iter, "max_iter")
+    if isinstance(m, str):
+        if m != "adaptive":
+            raise InvalidArgumentError(f"m must be an integer >= 0 or 'adaptive'; got {m!r}")
+        return t, None
+    return t, check_positive_int(m, "m", minimum=0)
 
 
 def _span(x: NDArray[np.float64]) -> float:
@@ -528,23 +558,84 @@ def _span(x: NDArray[np.float64]) -> float:
     return float(x.max() - x.min()) if x.size else 0.0
 
 
-def _adaptive_evaluation(
-    mdp: FiniteMDP,
-    act: NDArray[np.int64],
-    r_pi: NDArray[np.float64],
+def mpi_iterations(
+    optimality: Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.int64]]],
+    policy_backup: Callable[
+        [NDArray[np.int64]], Callable[[NDArray[np.float64]], NDArray[np.float64]]
+    ],
+    v: NDArray[np.float64],
+    live: NDArray[np.bool_],
     gamma: float,
+    tol: float,
+    max_iter: int,
+    m: int | None,
+) -> tuple[NDArray[np.float64], list[float], list[int], bool, float | None, float]:
+    """The loop of :func:`modified_policy_iteration`, for any model's two backups.
+
+    Args:
+        optimality: v -> (T v, a greedy action per state).
+        policy_backup: actions -> the policy's backup x -> r_pi + gamma P_pi x.
+        v: Starting values.
+        live: Non-terminal states.
+        gamma: Discount rate.
+        tol: Accuracy asked of v (MacQueen's bounds on d = T v_k - v_k, gamma < 1).
+        max_iter: The most improvements.
+        m: Evaluation sweeps per improvement; None for the adaptive rule.
+
+    Returns:
+        ``(v, history of max|d|, evaluation sweeps of each improvement (adaptive),
+        converged, error bound, last max|d|)``.
+    """
+    has_terminal = not bool(live.all())
+    history: list[float] = []
+    sweeps: list[int] = []
+    converged = False
+    bound: float | None = None
+    residual = np.inf
+    for _ in range(max_iter):
+        tv, act = optimality(v)
+        d = tv - v
+        residual = float(np.abs(d).max())
+        history.append(residual)
+        if gamma < 1.0:
+            shift, bound = span_bounds(d[live], gamma, has_terminal)
+            if bound <= tol:
+                tv[live] += shift
+                v = tv
+                converged = True
+                break
+        elif residual <= tol:
+            v = tv
+            converged = True
+            break
+        if not np.isfinite(residual):
+            v = tv
+            break
+        v = tv
+        if m is None:
+            v, n_eval = _adaptive_evaluation(policy_backup(act), v, _span(d[live]), live)
+            sweeps.append(n_eval)
+        elif m:
+            backup = policy_backup(act)
+            for _k in range(m):
+                v = backup(v)
+    return v, history, sweeps, converged, bound if gamma < 1.0 else None, residual
+
+
+def _adaptive_evaluation(
+    backup: Callable[[NDArray[np.float64]], NDArray[np.float64]],
     v: NDArray[np.float64],
     residual_span: float,
     live: NDArray[np.bool_],
 ) -> tuple[NDArray[np.float64], int]:
-    """Sweeps v <- r_pi + gamma P_pi v by the adaptive rule of :func:`modified_policy_iteration`.
+    """Sweeps v <- backup(v) = r_pi + gamma P_pi v by :func:`modified_policy_iteration`'s rule.
 
     Returns the values and the number of sweeps made.
     """
     target = ADAPTIVE_ETA * residual_span
     last = np.inf
     for j in range(1, ADAPTIVE_MAX_M + 1):
-        new = r_pi + gamma * policy_matvec(mdp, act, v)
+        new = backup(v)
         change = _span((new - v)[live])
         v = new
         if change <= target or change > ADAPTIVE_STALL * last:

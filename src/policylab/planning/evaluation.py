@@ -44,6 +44,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from policylab.exceptions import InvalidArgumentError
+from policylab.mdp.postdecision import PostDecisionMDP
 from policylab.planning._checks import (
     PolicyLike,
     as_policy,
@@ -303,7 +304,7 @@ def _gmres_refined(
 
 @overload
 def evaluate_policy(
-    mdp: FiniteMDP,
+    mdp: FiniteMDP | PostDecisionMDP,
     policy: PolicyLike,
     *,
     method: str = ...,
@@ -319,7 +320,7 @@ def evaluate_policy(
 
 @overload
 def evaluate_policy(
-    mdp: FiniteMDP,
+    mdp: FiniteMDP | PostDecisionMDP,
     policy: PolicyLike,
     *,
     method: str = ...,
@@ -334,7 +335,7 @@ def evaluate_policy(
 
 
 def evaluate_policy(
-    mdp: FiniteMDP,
+    mdp: FiniteMDP | PostDecisionMDP,
     policy: PolicyLike,
     *,
     method: str = "exact",
@@ -374,13 +375,19 @@ def evaluate_policy(
     Returns:
         v_pi as an (S,) array in the order of ``mdp.states`` (or the full result).
 
+    On a :class:`~policylab.mdp.PostDecisionMDP` a deterministic policy is evaluated
+    exactly by :func:`policylab.planning.postdecision.evaluate_actions` (``method``,
+    ``in_place`` and ``solver`` keep their defaults there).
+
     Raises:
         InvalidPolicyError: If the policy does not fit the MDP, or if gamma = 1 and
             some states never reach a terminal state under the policy (they are named).
     """
     t0 = time.perf_counter()
-    pi = as_policy(mdp, policy)
-    g = check_gamma(mdp, gamma)
+    pi = as_policy(mdp, policy)  # type: ignore[arg-type]  # (duck-typed on both models)
+    g = check_gamma(mdp, gamma)  # type: ignore[arg-type]
+    if isinstance(mdp, PostDecisionMDP):
+        return _evaluate_post_decision(mdp, pi, g, method, tol, v0, return_result, t0)
     if method not in ("exact", "iterative"):
         raise InvalidArgumentError(f"method must be 'exact' or 'iterative'; got {method!r}")
     start = np.zeros(mdp.n_states) if v0 is None else check_v(mdp, v0, "v0").copy()
@@ -455,4 +462,54 @@ def evaluate_policy(
         residual=out.residual,
         error_bound=out.error_bound,
         seconds=time.perf_counter() - t0,
+    )
+
+
+def _evaluate_post_decision(
+    mdp: PostDecisionMDP,
+    pi: Any,
+    gamma: float,
+    method: str,
+    tol: float | None,
+    v0: ArrayLike | None,
+    return_result: bool,
+    t0: float,
+) -> NDArray[np.float64] | PlanningResult:
+    """:func:`evaluate_policy` on a PostDecisionMDP (deterministic policies, exact)."""
+    from policylab.planning import postdecision
+
+    if method != "exact":
+        raise InvalidArgumentError(
+            f"method {method!r} applies to a FiniteMDP's outcome table; a PostDecisionMDP's "
+            "policies are evaluated exactly (method='exact')"
+        )
+    if not pi.is_deterministic:
+        raise InvalidArgumentError(
+            "a PostDecisionMDP evaluates deterministic policies (one action per state); "
+            "evaluate a stochastic one on model.to_finite_mdp()"
+        )
+    acts = np.asarray(pi.probs.argmax(axis=1), dtype=np.int64)
+    x0 = None if v0 is None else check_v(mdp, v0, "v0")  # type: ignore[arg-type]
+    v, info = postdecision.evaluate_actions(
+        mdp,
+        acts,
+        postdecision._check_gamma(mdp, gamma),
+        tol=None if tol is None else check_tol(tol),
+        x0=x0,
+    )
+    if not return_result:
+        return v
+    return PlanningResult(
+        v=v,
+        q=postdecision.q_values(mdp, v, gamma),
+        policy=pi,
+        iterations=1,
+        converged=True,
+        history=np.asarray([info["residual"]]),
+        method="evaluate (exact, post-decision)",
+        gamma=gamma,
+        residual=info["residual"],
+        error_bound=info["error_bound"],
+        seconds=time.perf_counter() - t0,
+        info=info,
     )

@@ -27,7 +27,10 @@ def inventory_management(
     holding_cost: float = 0.5,
     lost_sale_cost: float = 2.0,
     gamma: float = 0.95,
-) -> FiniteMDP:
+    *,
+    max_order: int | None = None,
+    post_decision: bool = False,
+) -> Any:
     """A single-product inventory with random demand and lost sales (Puterman 3.2).
 
     State: the stock at the start of a period, 0..``capacity``. Action: the order
@@ -42,17 +45,53 @@ def inventory_management(
     state; all larger demands leave 0 in stock and share one outcome whose reward uses
     the conditional expectation of the lost sales, E[D - y | D >= y]. A continuing
     task, gamma = 0.95 by default; ``meta`` gives figures the stock axis.
+
+    ``max_order`` caps the order at that many units (a in 0..min(max_order, capacity -
+    s)); by default any order that fits is allowed.
+
+    ``post_decision=True`` returns the same MDP as a
+    :class:`~policylab.mdp.PostDecisionMDP`: the order takes the stock s surely to the
+    stock on hand y = s + a (the post-decision state) with the expected reward
+    r(s, a) = -(order_cost [a > 0] + unit_cost a) + price E[min(y, D)] - holding_cost
+    E[(y - D)^+] - lost_sale_cost E[(D - y)^+], and the demand takes y to max(y - D, 0)
+    by a sparse kernel (entries below the smallest double are zero). Its size grows as
+    S * A plus the kernel's where the outcome table's grows as S * A times the
+    outcomes of a row, so it reaches 10^5 states (``capacity=99_999`` with a
+    ``max_order``).
     """
     if isinstance(capacity, bool) or not isinstance(capacity, int) or capacity < 1:
         raise InvalidArgumentError(f"capacity must be an integer >= 1; got {capacity!r}")
     if not demand_mean > 0:
         raise InvalidArgumentError(f"demand_mean must be > 0; got {demand_mean!r}")
+    if max_order is None:
+        max_order = capacity
+    if isinstance(max_order, bool) or not isinstance(max_order, int) or max_order < 0:
+        raise InvalidArgumentError(f"max_order must be an integer >= 0; got {max_order!r}")
+    max_order = min(max_order, capacity)
+    if post_decision:
+        return _inventory_post_decision(
+            capacity,
+            demand_mean,
+            price,
+            unit_cost,
+            order_cost,
+            holding_cost,
+            lost_sale_cost,
+            gamma,
+            max_order,
+        )
+    if (capacity + 1) * (max_order + 1) * min(capacity + 1, 400) > 100_000_000:
+        raise InvalidArgumentError(
+            f"inventory_management(capacity={capacity}) as an outcome table would hold more "
+            "than 10^8 outcomes; pass post_decision=True (and a max_order) for the same MDP "
+            "in the post-decision form"
+        )
     dynamics: dict[Hashable, Any] = {}
     k = np.arange(capacity + 1)
     pmf = poisson.pmf(k, demand_mean)
     for s in range(capacity + 1):
         acts: dict[int, list[tuple[float, int, float]]] = {}
-        for a in range(capacity - s + 1):
+        for a in range(min(capacity - s, max_order) + 1):
             y = s + a  # stock on hand
             fixed = -(order_cost if a > 0 else 0.0) - unit_cost * a
             outs = []
@@ -71,11 +110,80 @@ def inventory_management(
     return FiniteMDP.from_dynamics(
         dynamics,
         gamma=gamma,
-        actions=list(range(capacity + 1)),
+        actions=list(range(max_order + 1)),
         initial=0,
         name="inventory-management",
         meta={"x": list(range(capacity + 1)), "xlabel": "Stock"},
     )
+
+
+def _inventory_post_decision(
+    capacity: int,
+    demand_mean: float,
+    price: float,
+    unit_cost: float,
+    order_cost: float,
+    holding_cost: float,
+    lost_sale_cost: float,
+    gamma: float,
+    max_order: int,
+) -> Any:
+    """:func:`inventory_management` as a PostDecisionMDP (see its docstring)."""
+    import scipy.sparse as sp
+
+    from policylab.mdp.postdecision import PostDecisionMDP
+
+    n = capacity + 1
+    d = np.arange(n)
+    pmf = poisson.pmf(d, demand_mean)
+    tail = poisson.sf(d - 1, demand_mean)  # tail[y] = P(D >= y)
+    # E[min(y, D)] = sum_{d < y} d p(d) + y P(D >= y), for y = 0..capacity
+    below = np.concatenate([[0.0], np.cumsum(d * pmf)[:-1]])
+    sales = below + d * tail
+    stock_left = d - sales  # E[(y - D)^+]
+    lost = np.maximum(demand_mean - sales, 0.0)  # E[(D - y)^+]
+    g = price * sales - holding_cost * stock_left - lost_sale_cost * lost
+    # kernel, row y: s' = 0 with P(D >= y), then s' = y - d for the demands d < y, in
+    # ascending s' (demands whose probability underflows to 0 are left out)
+    nz = int(np.flatnonzero(pmf > 0).max()) + 1
+    m = np.minimum(d, nz)  # demands d < y kept in row y
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(1 + m, out=indptr[1:])
+    within = _ranges(n, nz)  # 0..m_y - 1 for each row y
+    first = np.repeat(indptr[:-1] + 1, m)  # where each row's demand entries start
+    cols = np.zeros(int(indptr[-1]), dtype=np.int64)
+    vals = np.empty(int(indptr[-1]))
+    cols[indptr[:-1]] = 0
+    vals[indptr[:-1]] = tail
+    ys = np.repeat(d, m)
+    lo = ys - np.repeat(m, m) + 1  # the smallest s' = y - (m_y - 1)
+    cols[first + within] = lo + within
+    vals[first + within] = pmf[np.repeat(m, m) - 1 - within]
+    vals /= np.repeat(np.add.reduceat(vals, indptr[:-1]), 1 + m)
+    K = sp.csr_array((vals, cols, indptr), shape=(n, n))
+    s = d[:, None]
+    a = np.arange(max_order + 1)[None, :]
+    mask = s + a <= capacity
+    post = np.where(mask, s + a, 0)
+    reward = np.where(mask, g[post] - unit_cost * a - order_cost * (a > 0), 0.0)
+    return PostDecisionMDP(
+        post,
+        reward,
+        K,
+        gamma,
+        action_mask=mask,
+        actions=list(range(max_order + 1)),
+        name="inventory-management",
+        meta={"xlabel": "Stock"},
+    )
+
+
+def _ranges(n: int, nz: int) -> np.ndarray:
+    """The concatenation of arange(min(y, nz)) for y = 0..n-1, without a Python loop."""
+    lengths = np.minimum(np.arange(n), nz)
+    starts = np.repeat(np.cumsum(lengths) - lengths, lengths)
+    out: np.ndarray = np.arange(int(lengths.sum())) - starts
+    return out
 
 
 def forest_management(

@@ -6,7 +6,7 @@ car rental (Example 4.2).
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Hashable, Sequence
 from typing import Any
 
 import numpy as np
@@ -138,6 +138,11 @@ def _location_model(
     with M[m, j] = E[rentals * 1{j cars at the end} | m cars], both (N+1, N+1).
     Requests beyond m are lost (rentals = min(requests, m)); returned cars beyond N
     go back to the nationwide company. Poisson tails are handled exactly.
+
+    Both are products over the cars left after the rentals, ``left``:
+    L = P_rent @ B and M = (P_rent * rentals) @ B, where P_rent[m, left] is the
+    probability of renting m - left cars from m and B[left, j] that of ending the day
+    with j cars from ``left``.
     """
     N = max_cars
     k = np.arange(N + 1)
@@ -145,18 +150,15 @@ def _location_model(
     req_tail = poisson.sf(k - 1, request_mean)  # P(requests >= k)
     ret_p = poisson.pmf(k, return_mean)
     ret_tail = poisson.sf(k - 1, return_mean)  # P(returns >= k)
-    L = np.zeros((N + 1, N + 1))
-    M = np.zeros((N + 1, N + 1))
-    for m in range(N + 1):
-        for rent in range(m + 1):
-            p_rent = req_p[rent] if rent < m else req_tail[m]
-            left = m - rent
-            # end count j = min(left + returns, N)
-            row = np.zeros(N + 1)
-            row[left:N] = ret_p[: N - left]
-            row[N] = ret_tail[N - left]
-            L[m] += p_rent * row
-            M[m] += p_rent * rent * row
+    rent = k[:, None] - k[None, :]  # rentals m - left, for m (rows) and left (columns)
+    p_rent = np.where(rent >= 0, req_p[np.clip(rent, 0, N)], 0.0)
+    p_rent[k, 0] = req_tail[k]  # left = 0: every request of m or more rents all m cars
+    # end count j = min(left + returns, N)
+    ret = k[None, :] - k[:, None]  # returns j - left, for left (rows) and j (columns)
+    B = np.where(ret >= 0, ret_p[np.clip(ret, 0, N)], 0.0)
+    B[:, N] = ret_tail[N - k]
+    L = p_rent @ B
+    M = (p_rent * np.maximum(rent, 0)) @ B
     return L, M
 
 
@@ -168,7 +170,9 @@ def jacks_car_rental(
     request_means: tuple[float, float] = (3.0, 4.0),
     return_means: tuple[float, float] = (3.0, 2.0),
     gamma: float = 0.9,
-) -> FiniteMDP:
+    *,
+    post_decision: bool = False,
+) -> Any:
     """Jack's car rental, Sutton & Barto's Example 4.2 (Figure 4.2).
 
     The model, as the book states it: a state (n1, n2) is the number of cars at each
@@ -188,10 +192,25 @@ def jacks_car_rental(
     Action labels are the integers -5..5 (net cars moved to the second location);
     ``grid`` lays states out as a 21 x 21 array (row n1, column n2) with no moves,
     and ``meta["axis_labels"]`` names its axes.
+
+    ``post_decision=True`` returns the same MDP as a
+    :class:`~policylab.mdp.PostDecisionMDP`: the move takes (n1, n2) surely to the
+    morning counts (m1, m2) = (min(n1 - a, N), min(n2 + a, N)) (the post-decision
+    state) and earns the expected rentals' $10 less the moves' cost; the day then
+    takes (m1, m2) to the evening counts by the product K_1 (x) K_2 of the two
+    locations' (N+1) x (N+1) kernels. Its size grows as S * A + 2 (N + 1)^2 where the
+    outcome table's grows as S^2 * A (it holds every (s, a, s')), so it reaches 10^6
+    states (``max_cars=999``) in about 150 MB.
     """
+    for name, val, lo in (("max_cars", max_cars, 1), ("max_move", max_move, 0)):
+        if isinstance(val, bool) or not isinstance(val, int | np.integer) or val < lo:
+            raise InvalidArgumentError(f"{name} must be an integer >= {lo}; got {val!r}")
     N, K = int(max_cars), int(max_move)
-    if N < 1 or K < 0:
-        raise InvalidArgumentError(f"need max_cars >= 1 and max_move >= 0; got {N}, {K}")
+    for name, means in (("request_means", request_means), ("return_means", return_means)):
+        if len(means) != 2 or not all(float(x) > 0 for x in means):
+            raise InvalidArgumentError(
+                f"{name} must be two Poisson means > 0 (one per location); got {means!r}"
+            )
     L1, M1 = _location_model(request_means[0], return_means[0], N)
     L2, M2 = _location_model(request_means[1], return_means[1], N)
     E1 = M1.sum(axis=1)  # expected rentals from m cars
@@ -200,6 +219,34 @@ def jacks_car_rental(
     S, A, n = (N + 1) ** 2, len(moves), N + 1
     n1, n2 = np.divmod(np.arange(S), n)
     mask = (moves[None, :] <= n1[:, None]) & (-moves[None, :] <= n2[:, None])
+    if post_decision:
+        from policylab.mdp.postdecision import PostDecisionMDP
+
+        mm1 = np.minimum(n1[:, None] - moves[None, :], N)
+        mm2 = np.minimum(n2[:, None] + moves[None, :], N)
+        ok = mask
+        post = np.where(ok, np.clip(mm1, 0, N) * n + np.clip(mm2, 0, N), 0)
+        reward = (
+            rent_reward * (E1[np.clip(mm1, 0, N)] + E2[np.clip(mm2, 0, N)])
+            - move_cost * np.abs(moves)[None, :]
+        )
+        return PostDecisionMDP(
+            post,
+            np.where(ok, reward, 0.0),
+            (L1 / L1.sum(axis=1, keepdims=True), L2 / L2.sum(axis=1, keepdims=True)),
+            gamma,
+            action_mask=mask,
+            states=_PairLabels(n),
+            actions=tuple(int(a) for a in moves),
+            name="jacks-car-rental",
+            meta={"axis_labels": ("cars at first location", "cars at second location")},
+        )
+    if S * S * A > 200_000_000:
+        raise InvalidArgumentError(
+            f"jacks_car_rental(max_cars={N}) as an outcome table would hold about "
+            f"{S * S * A:,} outcomes; pass post_decision=True for the same MDP in the "
+            "post-decision form"
+        )
     indptr = np.zeros(S * A + 1, dtype=np.int64)
     counts = np.where(mask.ravel(), S, 0)
     indptr[1:] = np.cumsum(counts)
@@ -242,6 +289,31 @@ def jacks_car_rental(
         grid=GridLayout(shape=(n, n), cells=states, moves=()),
         meta={"axis_labels": ("cars at first location", "cars at second location")},
     )
+
+
+class _PairLabels(Sequence[Hashable]):
+    """The states (n1, n2) of Jack's car rental in index order, without a tuple of them."""
+
+    def __init__(self, n: int) -> None:
+        self._n = n
+
+    def __len__(self) -> int:
+        return self._n * self._n
+
+    def __getitem__(self, i: Any) -> Any:
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        j = range(len(self))[i]
+        return (j // self._n, j % self._n)
+
+    def index(self, value: Any, start: int = 0, stop: int | None = None) -> int:
+        if (
+            isinstance(value, tuple)
+            and len(value) == 2
+            and all(isinstance(x, int | np.integer) and 0 <= x < self._n for x in value)
+        ):
+            return int(value[0]) * self._n + int(value[1])
+        raise ValueError(value)
 
 
 def jacks_no_move_policy(mdp: FiniteMDP) -> Policy:

@@ -127,3 +127,33 @@ def test_prioritized_replay_still_learns_with_flat_parameters() -> None:
     agent.learn(400)
     assert agent.n_updates > 0
     assert all(not torch.equal(p, b) for p, b in zip(agent.q.parameters(), before, strict=True))
+
+
+def test_cached_target_values_follow_the_buffer_and_the_target_network() -> None:
+    # a small buffer that wraps around, a target update every 50 steps: every cached
+    # Q_target(S', .) must equal a fresh forward pass of the current target network
+    agent = pl.deep.DQN(
+        "CartPole-v1", hidden=(16,), learning_starts=50, buffer_size=300, batch_size=16,
+        train_freq=8, gradient_steps=4, target_update_interval=50, seed=1,
+    )  # fmt: skip
+    idx = np.arange(300)
+    for steps in (400, 430, 777):
+        agent.learn(steps)
+        cached = agent._next_target_q(idx)
+        with torch.no_grad():
+            fresh = agent.q_target(torch.as_tensor(agent.replay.next_obs))
+        torch.testing.assert_close(cached, fresh, rtol=1e-6, atol=1e-6)
+        assert agent._target_q_fresh.all()
+
+
+def test_acting_without_forward_pass_draws_as_before() -> None:
+    # epsilon 1: every action is random and the generator is consumed as with a forward
+    agent = pl.deep.DQN("CartPole-v1", hidden=(8,), seed=2)
+    rng = np.random.default_rng(7)
+    agent.rng = np.random.default_rng(7)
+    obs = torch.zeros(5, 4)
+    got = agent._act(obs, deterministic=False)
+    explore = rng.random(5) < 1.0
+    assert explore.all()
+    np.testing.assert_array_equal(got, rng.integers(0, 2, 5))
+    assert agent.rng.random() == rng.random()

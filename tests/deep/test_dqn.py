@@ -89,7 +89,8 @@ def test_hand_written_round_equals_autograd_steps(double_q: bool, loss: str) -> 
         return a
 
     fast, slow = agent(), agent()
-    fast._train_steps_by_hand()
+    stats = fast._train_steps_by_hand()
+    losses, q_means = [], []
     b = slow.replay.sample(5 * 8)  # the same draws: the generators are in the same state
     for k in range(5):
         s = slice(8 * k, 8 * (k + 1))
@@ -102,11 +103,16 @@ def test_hand_written_round_equals_autograd_steps(double_q: bool, loss: str) -> 
             )  # fmt: skip
         q = slow.q(obs).gather(1, torch.as_tensor(b.actions[s]).long().unsqueeze(1)).squeeze(1)
         slow._flat.flat.grad.zero_()  # type: ignore[union-attr]
-        td_loss(y - q, torch.ones(8), loss).backward()  # type: ignore[no-untyped-call]
+        step_loss = td_loss(y - q, torch.ones(8), loss)
+        step_loss.backward()  # type: ignore[no-untyped-call]
+        losses.append(float(step_loss.detach()))
+        q_means.append(float(q.detach().mean()))
         clip_grad_norm(slow._params, slow.config.max_grad_norm)
         slow.optimizer.step()
     for p, e in zip(fast.q.parameters(), slow.q.parameters(), strict=True):
         torch.testing.assert_close(p, e, rtol=1e-5, atol=1e-6)
+    # the round's loss and mean Q: the means over its steps
+    assert stats.tolist() == pytest.approx([np.mean(losses), np.mean(q_means)], rel=1e-5)
     assert not torch.equal(fast.q.head[0].weight, fast.q_target.head[0].weight)
 
 

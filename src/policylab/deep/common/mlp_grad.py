@@ -89,7 +89,7 @@ def _activation(h: torch.Tensor, act: str) -> torch.Tensor:
             return h
         return torch.tanh(h)
     if act == "relu":
-        return torch.relu(h)
+        return torch.relu_(h)
     if act == "elu":
         return nn.functional.elu(h)
     raise InvalidArgumentError(f"activation must be tanh, relu or elu; got {act!r}")

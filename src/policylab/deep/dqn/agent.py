@@ -21,7 +21,7 @@ from policylab.deep.common.mlp_grad import (
     mlp_forward,
 )
 from policylab.deep.common.networks import clip_grad_norm
-from policylab.deep.dqn.losses import q_learning_targets, td_error_grad, td_loss
+from policylab.deep.dqn.losses import q_learning_targets, td_loss
 from policylab.deep.dqn.networks import QNetwork
 
 __all__ = ["DQN", "DQNConfig"]
@@ -253,26 +253,35 @@ class DQN(Agent):
         double = cfg.double_q
         next_obs = torch.from_numpy(b.next_obs) if double else None
         y_all = None if double else q_learning_targets(returns, discounts, next_target, None)
-        td_all = torch.empty(n, bs)
-        q_taken = torch.empty(n, bs)
-        for k in range(n):
-            s = slice(k * bs, (k + 1) * bs)
-            if y_all is None:
+        # dL/dQ(S, .) = -dL/d delta at the action taken, 0 at the others (delta = y - Q):
+        # with dL/d delta = c psi(delta) (td_error_grad: psi = clip(delta, -1, 1) and
+        # c = 1/B for Huber, psi = delta and c = 2/B squared), it is psi(delta) times a
+        # one-hot row holding -c, made for the whole round at once
+        c = (1.0 if cfg.loss == "huber" else 2.0) / bs
+        signed_onehot = torch.zeros(n * bs, self.n_actions).scatter_(1, actions, -c)
+        td_all, q_taken = torch.empty(n, bs, 1), torch.empty(n, bs, 1)
+        per_step = zip(
+            [None] * n if y_all is None else y_all.view(n, bs, 1).unbind(0),
+            obs.view(n, bs, *obs.shape[1:]).unbind(0),
+            actions.view(n, bs, 1).unbind(0),
+            signed_onehot.view(n, bs, -1).unbind(0),
+            td_all.unbind(0),
+            q_taken.unbind(0),
+            strict=True,
+        )
+        for k, (y_k, obs_k, a_k, onehot_k, td_k, q_k) in enumerate(per_step):
+            if y_k is None:  # Double DQN: the argmax of this step's online network
                 assert next_obs is not None
+                s = slice(k * bs, (k + 1) * bs)
                 with torch.no_grad():
-                    y = q_learning_targets(
+                    y_k = q_learning_targets(
                         returns[s], discounts[s], next_target[s], self.q(next_obs[s])
-                    )
-            else:
-                y = y_all[s]
-            q_all, inputs = mlp_forward(chain, self.q.act, obs[s])
-            a = actions[s]
-            q = torch.gather(q_all, 1, a, out=q_taken[k].unsqueeze(1)).squeeze(1)
-            td = torch.sub(y, q, out=td_all[k])
-            # dL/dQ(S, .) is -dL/d delta at the action taken, 0 at the others (delta = y - Q)
-            g_td = td_error_grad(td, None, cfg.loss)
-            g_out = torch.zeros_like(q_all).scatter_(1, a, g_td.neg_().unsqueeze(1))
-            mlp_backward(chain, self.q.act, inputs, g_out)
+                    ).unsqueeze(1)
+            q_all, inputs = mlp_forward(chain, self.q.act, obs_k)
+            q = torch.gather(q_all, 1, a_k, out=q_k)
+            td = torch.sub(y_k, q, out=td_k)
+            psi = torch.clamp(td, -1.0, 1.0) if cfg.loss == "huber" else td
+            mlp_backward(chain, self.q.act, inputs, onehot_k * psi)
             flat.clip_grad_norm_(cfg.max_grad_norm)
             fused_adam_step(self.optimizer)
         self.n_updates += n

@@ -23,11 +23,11 @@ from policylab.deep.dqn.networks import QNetwork
 )
 def test_short_run_cartpole(options: dict[str, object]) -> None:
     agent = pl.deep.DQN(
-        "CartPole-v1", learning_starts=500, buffer_size=5000, target_update_interval=200,
+        "CartPole-v1", learning_starts=300, buffer_size=5000, target_update_interval=200,
         hidden=(32, 32), seed=0, **options,
     )  # fmt: skip
-    agent.learn(2000)
-    assert agent.num_timesteps >= 2000 and agent.n_updates > 0
+    agent.learn(1200)  # about 200 rounds of updates, 4 target updates
+    assert agent.num_timesteps >= 1200 and agent.n_updates >= 180
     assert agent.epsilon < 1.0
     assert agent.predict(np.zeros(4, dtype=np.float32)) in (0, 1)
 

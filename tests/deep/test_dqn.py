@@ -23,11 +23,11 @@ from policylab.deep.dqn.networks import QNetwork
 )
 def test_short_run_cartpole(options: dict[str, object]) -> None:
     agent = pl.deep.DQN(
-        "CartPole-v1", learning_starts=500, buffer_size=5000, target_update_interval=200,
+        "CartPole-v1", learning_starts=300, buffer_size=5000, target_update_interval=200,
         hidden=(32, 32), seed=0, **options,
     )  # fmt: skip
-    agent.learn(2000)
-    assert agent.num_timesteps >= 2000 and agent.n_updates > 0
+    agent.learn(1200)  # about 200 rounds of updates, 4 target updates
+    assert agent.num_timesteps >= 1200 and agent.n_updates >= 180
     assert agent.epsilon < 1.0
     assert agent.predict(np.zeros(4, dtype=np.float32)) in (0, 1)
 
@@ -89,7 +89,8 @@ def test_hand_written_round_equals_autograd_steps(double_q: bool, loss: str) -> 
         return a
 
     fast, slow = agent(), agent()
-    fast._train_steps_by_hand()
+    stats = fast._train_steps_by_hand()
+    losses, q_means = [], []
     b = slow.replay.sample(5 * 8)  # the same draws: the generators are in the same state
     for k in range(5):
         s = slice(8 * k, 8 * (k + 1))
@@ -102,11 +103,16 @@ def test_hand_written_round_equals_autograd_steps(double_q: bool, loss: str) -> 
             )  # fmt: skip
         q = slow.q(obs).gather(1, torch.as_tensor(b.actions[s]).long().unsqueeze(1)).squeeze(1)
         slow._flat.flat.grad.zero_()  # type: ignore[union-attr]
-        td_loss(y - q, torch.ones(8), loss).backward()  # type: ignore[no-untyped-call]
+        step_loss = td_loss(y - q, torch.ones(8), loss)
+        step_loss.backward()  # type: ignore[no-untyped-call]
+        losses.append(float(step_loss.detach()))
+        q_means.append(float(q.detach().mean()))
         clip_grad_norm(slow._params, slow.config.max_grad_norm)
         slow.optimizer.step()
     for p, e in zip(fast.q.parameters(), slow.q.parameters(), strict=True):
         torch.testing.assert_close(p, e, rtol=1e-5, atol=1e-6)
+    # the round's loss and mean Q: the means over its steps
+    assert stats.tolist() == pytest.approx([np.mean(losses), np.mean(q_means)], rel=1e-5)
     assert not torch.equal(fast.q.head[0].weight, fast.q_target.head[0].weight)
 
 
@@ -127,3 +133,33 @@ def test_prioritized_replay_still_learns_with_flat_parameters() -> None:
     agent.learn(400)
     assert agent.n_updates > 0
     assert all(not torch.equal(p, b) for p, b in zip(agent.q.parameters(), before, strict=True))
+
+
+def test_cached_target_values_follow_the_buffer_and_the_target_network() -> None:
+    # a small buffer that wraps around, a target update every 50 steps: every cached
+    # Q_target(S', .) must equal a fresh forward pass of the current target network
+    agent = pl.deep.DQN(
+        "CartPole-v1", hidden=(16,), learning_starts=50, buffer_size=300, batch_size=16,
+        train_freq=8, gradient_steps=4, target_update_interval=50, seed=1,
+    )  # fmt: skip
+    idx = np.arange(300)
+    for steps in (400, 430, 777):
+        agent.learn(steps)
+        cached = agent._next_target_q(idx)
+        with torch.no_grad():
+            fresh = agent.q_target(torch.as_tensor(agent.replay.next_obs))
+        torch.testing.assert_close(cached, fresh, rtol=1e-6, atol=1e-6)
+        assert agent._target_q_fresh.all()
+
+
+def test_acting_without_forward_pass_draws_as_before() -> None:
+    # epsilon 1: every action is random and the generator is consumed as with a forward
+    agent = pl.deep.DQN("CartPole-v1", hidden=(8,), seed=2)
+    rng = np.random.default_rng(7)
+    agent.rng = np.random.default_rng(7)
+    obs = torch.zeros(5, 4)
+    got = agent._act(obs, deterministic=False)
+    explore = rng.random(5) < 1.0
+    assert explore.all()
+    np.testing.assert_array_equal(got, rng.integers(0, 2, 5))
+    assert agent.rng.random() == rng.random()

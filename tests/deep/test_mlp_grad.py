@@ -94,3 +94,31 @@ def test_flat_parameters_are_views_and_old_optimizer_state_converts() -> None:
     assert float(state["step"]) == 1.0
     # ... and a flat one is left alone
     assert flat.state_from_per_parameter(one.state_dict()) == one.state_dict()
+
+
+def test_fused_adam_step_and_flat_clip_equal_the_optimizer_bit_for_bit() -> None:
+    import copy
+
+    from policylab.deep.common.mlp_grad import fused_adam_step
+    from policylab.deep.common.networks import clip_grad_norm
+
+    gen = torch.Generator().manual_seed(0)
+    net = torch.nn.Sequential(torch.nn.Linear(4, 16), torch.nn.Tanh(), torch.nn.Linear(16, 2))
+    net2 = copy.deepcopy(net)
+    f1, f2 = FlatParameters(list(net.parameters())), FlatParameters(list(net2.parameters()))
+    o1 = torch.optim.Adam([f1.flat], lr=1e-2, eps=1e-5, fused=True)
+    o2 = torch.optim.Adam([f2.flat], lr=1e-2, eps=1e-5, fused=True)
+    for i in range(6):
+        x = torch.randn(8, 4, generator=gen) * (10.0 if i % 2 else 0.1)  # clipped, unclipped
+        for m, f in ((net, f1), (net2, f2)):
+            f.flat.grad.zero_()  # type: ignore[union-attr]
+            (m(x) ** 2).sum().backward()  # type: ignore[no-untyped-call]
+        norm = clip_grad_norm([f1.flat], 1.0)
+        o1.step()
+        assert float(f2.clip_grad_norm_(1.0)) == norm
+        fused_adam_step(o2)
+        assert torch.equal(f1.flat, f2.flat)
+        for o in (o1, o2):
+            o.param_groups[0]["lr"] = 1e-2 * (1 - i / 6)  # an annealed rate is read each step
+    s1, s2 = o1.state_dict()["state"][0], o2.state_dict()["state"][0]
+    assert all(torch.equal(s1[k], s2[k]) for k in ("step", "exp_avg", "exp_avg_sq"))

@@ -2,7 +2,10 @@
 
 An env id becomes ``gymnasium.make_vec``: the NumPy-vectorised implementation where
 the environment has one (CartPole; policylab's :class:`AcrobotVectorEnv` for
-Acrobot-v1), otherwise a ``SyncVectorEnv``. Atari ids
+Acrobot-v1), otherwise a ``SyncVectorEnv``. One copy of an env that has a vectorised
+implementation is stepped as the single env instead (:class:`OneEnvVector`): NumPy's
+per-call cost on arrays of one element makes the vectorised step several times slower
+than the scalar one there. Atari ids
 (``ALE/Pong-v5``) get Gymnasium's ``AtariPreprocessing`` (no-op starts, frame skip 4,
 84x84 grey frames) and ``FrameStackObservation`` (4 frames). All vector envs run in
 Gymnasium's default next-step autoreset mode, which the agents rely on.
@@ -21,6 +24,7 @@ from policylab.exceptions import InvalidArgumentError
 
 __all__ = [
     "AcrobotVectorEnv",
+    "OneEnvVector",
     "check_env_id",
     "env_id_of",
     "is_atari_id",
@@ -115,6 +119,9 @@ def make_vec_env(env: EnvLike, n_envs: int = 1) -> VectorEnv:
             venv = gym.vector.SyncVectorEnv([lambda: make_env(env) for _ in range(n_envs)])
         else:
             spec = check_env_id(env)
+            vectorised = env == "Acrobot-v1" or spec.vector_entry_point is not None
+            if n_envs == 1 and vectorised:
+                return OneEnvVector(_make(env))
             if env == "Acrobot-v1":
                 return AcrobotVectorEnv(n_envs)
             mode = "vector_entry_point" if spec.vector_entry_point is not None else "sync"
@@ -341,3 +348,71 @@ class AcrobotVectorEnv(VectorEnv):
         return np.stack([cos(s[0]), sin(s[0]), cos(s[1]), sin(s[1]), s[2], s[3]], axis=1).astype(
             np.float32
         )
+
+
+class OneEnvVector(VectorEnv):
+    """One environment as a vector env of one copy, in next-step autoreset mode.
+
+    What ``SyncVectorEnv([lambda: env])`` gives (observations, rewards, terminated and
+    truncated flags with a leading axis of 1; ``reset(seed=s)`` seeds the env with s;
+    the step after an episode's end resets the env and reports reward 0, not
+    terminated, not truncated), for a few microseconds a step: no per-step info
+    merging, no batched copies through the space utilities. The infos are not
+    forwarded (the agents do not read them).
+
+    Args:
+        env: The environment (a ``gymnasium.make`` env with a Box or Discrete
+            observation space).
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}  # noqa: RUF012
+
+    def __init__(self, env: gym.Env[Any, Any]) -> None:
+        from gymnasium.vector.utils import batch_space
+
+        self.env = env
+        self.num_envs = 1
+        self.spec = env.spec
+        self.single_observation_space = env.observation_space
+        self.single_action_space = env.action_space
+        self.observation_space = batch_space(env.observation_space, 1)
+        self.action_space = batch_space(env.action_space, 1)
+        self._obs_dtype = env.observation_space.dtype
+        self._done = False
+
+    def _batch(self, obs: Any) -> NDArray[Any]:
+        return np.array(obs, dtype=self._obs_dtype)[None]
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[Any], dict[str, Any]]:
+        """Reset the env (``seed`` seeds it, as ``SyncVectorEnv`` seeds its first env)."""
+        super().reset(seed=seed)
+        obs, _ = self.env.reset(seed=seed, options=options)
+        self._done = False
+        return self._batch(obs), {}
+
+    def step(
+        self, actions: NDArray[Any]
+    ) -> tuple[
+        NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]
+    ]:
+        """Step the env with ``actions[0]``, or reset it if its episode ended last step."""
+        if self._done:
+            obs, _ = self.env.reset()
+            self._done = False
+            no = np.zeros(1, dtype=np.bool_)
+            return self._batch(obs), np.zeros(1), no, no.copy(), {}
+        obs, reward, terminated, truncated, _ = self.env.step(actions[0])
+        self._done = bool(terminated or truncated)
+        return (
+            self._batch(obs),
+            np.array([reward], dtype=np.float64),
+            np.array([terminated], dtype=np.bool_),
+            np.array([truncated], dtype=np.bool_),
+            {},
+        )
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Close the env."""
+        self.env.close()

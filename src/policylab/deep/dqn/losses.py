@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 from torch.nn import functional
 
-__all__ = ["q_learning_targets", "td_loss", "td_loss_grad"]
+__all__ = ["q_learning_targets", "td_error_grad", "td_loss", "td_loss_grad"]
 
 
 def q_learning_targets(
@@ -36,19 +36,24 @@ def q_learning_targets(
     return returns + discounts * bootstrap
 
 
-def td_loss(td_errors: torch.Tensor, weights: torch.Tensor, kind: str = "huber") -> torch.Tensor:
-    """Importance-weighted mean of the Huber (smooth L1, delta 1) or squared TD error."""
+def td_loss(
+    td_errors: torch.Tensor, weights: torch.Tensor | None, kind: str = "huber"
+) -> torch.Tensor:
+    """Importance-weighted mean of the Huber (smooth L1, delta 1) or squared TD error.
+
+    ``weights`` None weighs every error by 1 (uniform replay).
+    """
     zeros = torch.zeros_like(td_errors)
     per = (
         functional.smooth_l1_loss(td_errors, zeros, reduction="none")
         if kind == "huber"
         else td_errors**2
     )
-    return (weights * per).mean()
+    return (per if weights is None else weights * per).mean()
 
 
 def td_loss_grad(
-    td_errors: torch.Tensor, weights: torch.Tensor, kind: str = "huber"
+    td_errors: torch.Tensor, weights: torch.Tensor | None, kind: str = "huber"
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """:func:`td_loss` and its derivative dL/d delta_i over a batch of B TD errors.
 
@@ -56,13 +61,27 @@ def td_loss_grad(
 
     Huber:   dL/d delta_i = w_i clip(delta_i, -1, 1) / B
     squared: dL/d delta_i = 2 w_i delta_i / B
+
+    ``weights`` None is w_i = 1 (uniform replay), without the multiplications.
     """
-    n = td_errors.numel()
     if kind == "huber":
-        grad = torch.clamp(td_errors, -1.0, 1.0)
-        a = grad.abs()
+        a = torch.clamp(td_errors, -1.0, 1.0).abs_()
         per = a * (td_errors.abs() - 0.5 * a)  # 0.5 d^2 inside [-1, 1], |d| - 0.5 outside
     else:
-        grad = 2.0 * td_errors
         per = td_errors * td_errors
-    return (weights * per).mean(), grad.mul_(weights).mul_(1.0 / n)
+    loss = (per if weights is None else weights * per).mean()
+    return loss, td_error_grad(td_errors, weights, kind)
+
+
+def td_error_grad(
+    td_errors: torch.Tensor, weights: torch.Tensor | None, kind: str = "huber"
+) -> torch.Tensor:
+    """dL/d delta_i of :func:`td_loss` alone (the gradient step needs no loss value).
+
+    Huber: w_i clip(delta_i, -1, 1) / B; squared: 2 w_i delta_i / B (``weights`` None
+    is w_i = 1).
+    """
+    grad = torch.clamp(td_errors, -1.0, 1.0) if kind == "huber" else 2.0 * td_errors
+    if weights is not None:
+        grad.mul_(weights)
+    return grad.mul_(1.0 / td_errors.numel())

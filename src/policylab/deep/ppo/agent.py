@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import RolloutBuffer
 from policylab.deep.common.config import check, documented, option
-from policylab.deep.common.mlp_grad import FlatParameters
+from policylab.deep.common.mlp_grad import FlatParameters, fused_adam_step
 from policylab.deep.common.networks import clip_grad_norm
 from policylab.deep.common.normalize import RewardScaler
 from policylab.deep.ppo.losses import (
@@ -191,8 +191,12 @@ class PPO(Agent):
                     ent = entropy.mean()
                     loss = pg_loss + cfg.vf_coef * v_loss - cfg.ent_coef * ent
                     loss.backward()  # type: ignore[no-untyped-call]
-                clip_grad_norm(self._params, cfg.max_grad_norm)
-                self.optimizer.step()
+                if self._flat is not None:  # the same arithmetic on the one flat tensor
+                    self._flat.clip_grad_norm_(cfg.max_grad_norm)
+                    fused_adam_step(self.optimizer)
+                else:
+                    clip_grad_norm(self._params, cfg.max_grad_norm)
+                    self.optimizer.step()
                 self.n_updates += 1
                 with torch.no_grad():
                     approx_kl = ((ratio - 1) - log_ratio).mean()

@@ -15,24 +15,11 @@ from pathlib import Path
 
 START, END = "# <generated learners>\n", "# </generated learners>\n"
 
-_OPTIONS = (
-    "The options every tabular learner shares (:class:`~policylab.tabular.LearnOptions`): "
-    "``gamma``, ``seed``, ``checkpoints``, ``max_steps``, ``model``, ``progress``."
-)
+_OPTIONS = "The options every learner shares, :class:`~policylab.tabular.LearnOptions`."
 _PROBLEM = "A FiniteMDP (compiled) or a Gymnasium env with Discrete observations."
-_POLICY = (
-    "The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default: "
-    "the equiprobable random policy)."
-)
-_RETURNS_CONTROL = (
-    "A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error "
-    "against q* where the model is known."
-)
-_RETURNS_PREDICTION = (
-    "A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where "
-    "the model is known. Prediction learns V only: ``q`` is its one-step lookahead "
-    "through the model (zeros without one) and ``policy`` is the policy evaluated."
-)
+_POLICY = "A :class:`~policylab.Policy` or an (S, A) array (default: equiprobable)."
+_RETURNS_CONTROL = "A :class:`LearnResult` (the error is against q* where the model is known)."
+_RETURNS_PREDICTION = "A :class:`LearnResult` (the error of V is against v_pi, as above)."
 
 
 def _arg_doc(name: str, doc: str) -> list[str]:

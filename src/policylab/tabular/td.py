@@ -15,6 +15,19 @@ as plain Python, see :mod:`policylab.tabular.td_kernels`), and returns a
 v_pi (prediction) or q* (control) where the model is known. :func:`seed_study` runs
 one learner for many seeds at once (the studies of Figures 6.2-6.5).
 
+Every TD learner's options mean the same: ``alpha`` (default 0.1) is a number, a
+:class:`~policylab.tabular.Schedule` of each entry's update count or a schedule string
+(``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``); ``epsilon`` (control,
+default 0.1) the exploration rate of the epsilon-greedy behaviour, a number or a
+schedule of the episode number (``"linear:1,0.01,5000"``); ``init`` (default 0) the
+initial value of every non-terminal entry of the table (V(s) = 0.5 in Example 6.2);
+``policy`` (prediction) the policy evaluated, a :class:`~policylab.Policy` or an (S, A)
+array. Prediction learns V only: its result's ``q`` is the one-step lookahead of V
+through the model (zeros without one), its ``policy`` the policy evaluated, and its
+error that of V against the exact v_pi. The shared options (``gamma``, ``seed``,
+``checkpoints``, ``max_steps``, ``model``, ``progress``) are
+:class:`~policylab.tabular.LearnOptions`.
+
 Example::
 
     import policylab as pl
@@ -554,8 +567,7 @@ _ALPHA = Option(
     "(1/n, inverse:1,0.6,0.01, exp:0.5,0.999,0.01, linear:0.5,0.01,10000).",
     annotation=_SCHEDULE,
     value="0.1",
-    doc="Step size: a number, a :class:`Schedule` of the entry's update count, or a "
-    'schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).',
+    doc="Step size: a number, a :class:`Schedule` or a schedule string.",
 )
 _EPSILON = Option(
     "--epsilon",
@@ -565,8 +577,7 @@ _EPSILON = Option(
     "episode number (1/n, exp:1,0.999,0.01, linear:1,0.01,5000).",
     annotation=_SCHEDULE,
     value="0.1",
-    doc="Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of "
-    'the episode number (``"linear:1,0.01,5000"``).',
+    doc="Exploration rate: a number, a :class:`Schedule` or a schedule string.",
 )
 _INIT = Option(
     "--init",
@@ -575,8 +586,7 @@ _INIT = Option(
     "Initial value of every non-terminal entry of the table (high values explore optimistically).",
     annotation="float",
     value="0.0",
-    doc="Initial value of every non-terminal entry of the table (optimistic if high; "
-    "V(s) = 0.5 in Example 6.2).",
+    doc="Initial value of the table's non-terminal entries (optimistic if high).",
 )
 _N = Option(
     "--n",
@@ -833,21 +843,14 @@ def td0(
 
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
-        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
-            the equiprobable random policy).
+        policy: A :class:`~policylab.Policy` or an (S, A) array (default: equiprobable).
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        **options: The options every tabular learner shares
-            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``, ``checkpoints``,
-            ``max_steps``, ``model``, ``progress``.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
-        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
-        model (zeros without one) and ``policy`` is the policy evaluated.
+        A :class:`LearnResult` (the error of V is against v_pi, as above).
     """
     return learn_entry("td0", locals())
 
@@ -870,22 +873,15 @@ def n_step_td(
 
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
-        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
-            the equiprobable random policy).
+        policy: A :class:`~policylab.Policy` or an (S, A) array (default: equiprobable).
         n: Number of steps n of the n-step return (n = 1 is one-step TD).
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        **options: The options every tabular learner shares
-            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``, ``checkpoints``,
-            ``max_steps``, ``model``, ``progress``.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
-        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
-        model (zeros without one) and ``policy`` is the policy evaluated.
+        A :class:`LearnResult` (the error of V is against v_pi, as above).
     """
     return learn_entry("n-step-td", locals())
 
@@ -909,23 +905,16 @@ def td_lambda(
 
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
-        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
-            the equiprobable random policy).
+        policy: A :class:`~policylab.Policy` or an (S, A) array (default: equiprobable).
         lam: Trace-decay rate lambda in [0, 1] (0 is one-step TD).
         trace: Eligibility trace: accumulating or replacing.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        **options: The options every tabular learner shares
-            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``, ``checkpoints``,
-            ``max_steps``, ``model``, ``progress``.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
-        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
-        model (zeros without one) and ``policy`` is the policy evaluated.
+        A :class:`LearnResult` (the error of V is against v_pi, as above).
     """
     return learn_entry("td-lambda", locals())
 
@@ -947,19 +936,13 @@ def sarsa(
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        **options: The options every tabular learner shares
-            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``, ``checkpoints``,
-            ``max_steps``, ``model``, ``progress``.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
     return learn_entry("sarsa", locals())
 
@@ -980,19 +963,13 @@ def q_learning(
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        **options: The options every tabular learner shares
-            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``, ``checkpoints``,
-            ``max_steps``, ``model``, ``progress``.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
     return learn_entry("q-learning", locals())
 
@@ -1014,19 +991,13 @@ def expected_sarsa(
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        **options: The options every tabular learner shares
-            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``, ``checkpoints``,
-            ``max_steps``, ``model``, ``progress``.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
     return learn_entry("expected-sarsa", locals())
 
@@ -1049,19 +1020,13 @@ def double_q_learning(
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        **options: The options every tabular learner shares
-            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``, ``checkpoints``,
-            ``max_steps``, ``model``, ``progress``.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
     return learn_entry("double-q-learning", locals())
 
@@ -1085,19 +1050,13 @@ def n_step_sarsa(
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
         n: Number of steps n of the n-step return (n = 1 is one-step TD).
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        **options: The options every tabular learner shares
-            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``, ``checkpoints``,
-            ``max_steps``, ``model``, ``progress``.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
     return learn_entry("n-step-sarsa", locals())
 
@@ -1123,19 +1082,13 @@ def sarsa_lambda(
         lam: Trace-decay rate lambda in [0, 1] (0 is one-step TD).
         trace: Eligibility trace: accumulating or replacing.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        **options: The options every tabular learner shares
-            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``, ``checkpoints``,
-            ``max_steps``, ``model``, ``progress``.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
     return learn_entry("sarsa-lambda", locals())
 
@@ -1162,19 +1115,13 @@ def dyna_q(
         planning_steps: Planning updates from the learned model after each real step (0 is
             Q-learning).
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        **options: The options every tabular learner shares
-            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``, ``checkpoints``,
-            ``max_steps``, ``model``, ``progress``.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
     return learn_entry("dyna-q", locals())
 

@@ -463,7 +463,7 @@ def _fast_setup(
     target = st.target.probs.ravel() if st.target is not None else np.zeros(S * A)
     initial = writable(start_state(mdp, start), np.float64)
     model = Model(
-        km.indptr, km.next_states, km.probs, km.rewards, km.terminal, initial, km.mask
+        km.indptr, km.next_states, km.cdf, km.rewards, km.terminal, initial, km.mask
     )  # fmt: skip
     behaviour = Behaviour(
         st.policy_kind, pi, st.epsilon.params, st.eps_by_state, st.exploring_starts

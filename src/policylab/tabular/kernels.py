@@ -345,7 +345,7 @@ def epsilon_greedy_action(
 ) -> int:  # pragma: no cover - compiled
     """:func:`epsilon_greedy_at` on one row Q(s, .) and A(s) (the same draws)."""
     n = q_row.shape[0]
-    return epsilon_greedy_at(  # type: ignore[no-any-return]
+    return epsilon_greedy_at(
         np.ascontiguousarray(q_row).reshape((1, n)),
         np.ascontiguousarray(mask_row).reshape((1, n)),
         0,

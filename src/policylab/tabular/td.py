@@ -376,20 +376,21 @@ class _Run:
 
     def estimate(self) -> tuple[Any, Any, None]:
         """What the error is measured on: Q (control) and V."""
-        return (self.q if self.algo.control else None), self.v, None
+        q, v = self.values()
+        return (q if self.algo.control else None), v, None
 
     def outcome(self) -> dict[str, Any]:
         """The run's :class:`LearnResult` fields (with a warning if it diverged)."""
-        _warn_if_diverged(self)
         P, algo, out = self.P, self.algo, self.out
+        _warn_if_diverged(algo, P, self.gamma, self.max_steps, self.alpha, self.w, self.q2)
         counts = self.tables.counts
         counts = counts if algo.control else np.repeat(counts, P.n_actions, axis=1) * P.mask
-        q = self.q
+        q, v = self.values()
         return {
             "states": P.states,
             "actions": P.actions,
             "q": q,
-            "v": self.v,
+            "v": v,
             "policy": greedy_probs(q, P.mask) if algo.control else self.tables.pi.copy(),
             "terminal": P.terminal,
             "action_mask": P.mask,
@@ -410,33 +411,40 @@ class _Run:
         """Q2 of Double Q-learning (else the learned table itself)."""
         return self.tables.q2  # type: ignore[no-any-return]
 
-    @property
-    def q(self) -> NDArray[np.float64]:
-        """Q (S, A): the control table (Q1 + Q2 averaged for Double Q).
+    def values(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(Q, V) of the run's tables (see :func:`_values`)."""
+        return _values(self.algo, self.P, self.gamma, self.w, self.q2)
 
-        Prediction learns V only; its Q is the one-step lookahead q(s, a) = sum p(s', r |
-        s, a) [r + gamma V(s')] where the model is known, else zeros.
-        """
-        if not self.algo.control:
-            if self.P.mdp is None or not np.all(np.isfinite(self.v)):
-                return np.zeros((self.P.n_states, self.P.n_actions))
-            from policylab.planning import action_values
 
-            q = np.asarray(action_values(self.P.mdp.with_gamma(self.gamma), self.v))
-            return np.where(self.P.mask, q, 0.0)
-        q = (self.w + self.q2) / 2.0 if self.algo.rule == tdk.DOUBLE_Q else self.w.copy()
-        return np.where(self.P.mask, q, 0.0)
+def _values(
+    algo: _Algo, P: _Problem, gamma: float, w: NDArray[np.float64], q2: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Q (S, A) and V (S,) of learned tables, or of R runs' tables at once (leading axis).
 
-    @property
-    def v(self) -> NDArray[np.float64]:
-        """V (S,): the learned V (prediction) or max_a Q(s, a) over A(s) (control)."""
-        if not self.algo.control:
-            v = self.w[:, 0].copy()
-        else:
-            qm = np.where(self.P.mask, self.q, -np.inf)
-            v = np.where(self.P.mask.any(axis=1), qm.max(axis=1), 0.0)
-        v[self.P.terminal] = 0.0
-        return v
+    Control: Q the table (Q1 + Q2 averaged for Double Q) on A(s), V = max over A(s) of
+    Q. Prediction learns V only; its Q is the one-step lookahead q(s, a) = sum p(s', r |
+    s, a) [r + gamma V(s')] where the model is known, else zeros. V is 0 on terminals.
+    """
+    if algo.control:
+        q = np.where(P.mask, (w + q2) / 2.0 if algo.rule == tdk.DOUBLE_Q else w, 0.0)
+        v = np.where(P.mask.any(axis=1), np.where(P.mask, q, -np.inf).max(axis=-1), 0.0)
+        v[..., P.terminal] = 0.0
+        return q, v
+    v = w[..., 0].copy()
+    v[..., P.terminal] = 0.0
+    if v.ndim == 2:
+        return np.stack([_lookahead(P, gamma, row) for row in v]), v
+    return _lookahead(P, gamma, v), v
+
+
+def _lookahead(P: _Problem, gamma: float, v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """q(s, a) = sum p(s', r | s, a) [r + gamma V(s')] on A(s) (zeros without a model)."""
+    if P.mdp is None or not np.all(np.isfinite(v)):
+        return np.zeros((P.n_states, P.n_actions))
+    from policylab.planning import action_values
+
+    q = np.asarray(action_values(P.mdp.with_gamma(gamma), v))
+    return np.where(P.mask, q, 0.0)
 
 
 def _prepare(
@@ -491,24 +499,10 @@ def _plan(algo: _Algo, args: dict[str, Any], params: dict[str, Any]) -> Plan:
         settings = algo.settings(g, a, e, max_steps)
         family = _FAMILIES[algo.family]
         steps = tdk.many_runs(family, model, tables, settings, out, rngs, episodes)
-        runs = [
-            _Run(
-                algo, P, g, max_steps, rngs[r], None, model, settings,
-                tdk.Tables(*(t if t is pi else t[r] for t in tables)),
-                tdk.Episodes(*(o[r] for o in out)), str(a),
-            )
-            for r in range(R)
-        ]  # fmt: skip
-        for run in runs:
-            _warn_if_diverged(run)
-        return Many(
-            out.returns,
-            out.lengths,
-            np.stack([run.q for run in runs]),
-            np.stack([run.v for run in runs]),
-            out.first_actions if algo.family == "one_step" else None,
-            int(steps.sum()),
-        )
+        _warn_if_diverged(algo, P, g, max_steps, str(a), tables.w, tables.q2)
+        q, v = _values(algo, P, g, tables.w, tables.q2)
+        first = out.first_actions if algo.family == "one_step" else None
+        return Many(out.returns, out.lengths, q, v, first, int(steps.sum()))
 
     return Plan(
         algorithm=algo.name,
@@ -525,18 +519,26 @@ def _plan(algo: _Algo, args: dict[str, Any], params: dict[str, Any]) -> Plan:
     )
 
 
-def _warn_if_diverged(run: _Run) -> None:
-    """Warn when the table diverged.
+def _warn_if_diverged(
+    algo: _Algo,
+    P: _Problem,
+    gamma: float,
+    max_steps: int,
+    alpha: str,
+    w: NDArray[np.float64],
+    q2: NDArray[np.float64],
+) -> None:
+    """Warn when the tables (of one run or of many) diverged.
 
     Diverged: non-finite values, or (with a model) values beyond ten times the largest
     possible return, max|r| / (1 - gamma) (max|r| * max_steps for gamma = 1).
     """
-    tables = np.concatenate([run.w.ravel(), run.q2.ravel()])
-    diverged = not np.all(np.isfinite(tables))
-    if not diverged and run.P.mdp is not None and run.P.mdp.n_outcomes:
-        r_max = float(np.abs(run.P.mdp.rewards).max())
-        horizon = 1.0 / (1.0 - run.gamma) if run.gamma < 1.0 else float(run.max_steps)
-        diverged = bool(np.abs(tables).max() > 10.0 * max(r_max, 1e-12) * horizon)
+    diverged = not (np.all(np.isfinite(w)) and np.all(np.isfinite(q2)))
+    if not diverged and P.mdp is not None and P.mdp.n_outcomes:
+        r_max = float(np.abs(P.mdp.rewards).max())
+        horizon = 1.0 / (1.0 - gamma) if gamma < 1.0 else float(max_steps)
+        largest = max(float(np.abs(w).max()), float(np.abs(q2).max()))
+        diverged = largest > 10.0 * max(r_max, 1e-12) * horizon
     if not diverged:
         return
     import warnings
@@ -544,12 +546,12 @@ def _warn_if_diverged(run: _Run) -> None:
     hint = (
         " (accumulating traces diverge when alpha is large for the trace length, S&B "
         "Figure 12.6; try replacing traces)"
-        if run.algo.family == "lambda"
+        if algo.family == "lambda"
         else ""
     )
     warnings.warn(
-        f"{run.algo.name}: the estimates diverged (beyond any possible return) with alpha "
-        f"{run.alpha}; use a smaller step size{hint}",
+        f"{algo.name}: the estimates diverged (beyond any possible return) with alpha "
+        f"{alpha}; use a smaller step size{hint}",
         RuntimeWarning,
         stacklevel=6,
     )

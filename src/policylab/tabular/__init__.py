@@ -16,14 +16,16 @@ rules run as Python over ``env.reset``/``env.step``), and returns a :class:`Lear
 
 The shared options, one convention for every learner (Monte Carlo and TD)
 -------------------------------------------------------------------------
-``problem`` first; ``policy`` second for prediction (a :class:`~policylab.Policy`);
-then keywords: ``episodes``; the algorithm's own options; ``alpha`` (step size) and
-``epsilon`` (exploration), each a number, a :class:`Schedule` or a schedule string
-(``"1/n"``, ``"exp:1,0.999,0.01"``); ``gamma`` (None: the problem's); ``seed`` (int,
-Generator or None: same seed, same result); ``checkpoints`` (points of the error curve
-against the exact answer, log-spaced); ``max_steps`` (step limit of an episode);
-``model`` (the exact FiniteMDP behind an env, for the error curve); ``progress``.
-Monte Carlo adds ``start``, ``error_on`` and ``score``; TD adds ``init``.
+``problem`` first; ``policy`` second for prediction; then keywords: ``episodes``, the
+algorithm's own options (``alpha`` and ``epsilon`` are each a number, a
+:class:`Schedule` or a schedule string such as ``"1/n"`` or ``"exp:1,0.999,0.01"``),
+and the options every learner shares, :class:`LearnOptions`: ``gamma`` (None: the
+problem's), ``seed`` (int, Generator or None: same seed, same result), ``checkpoints``
+(points of the error curve against the exact answer, log-spaced), ``max_steps`` (step
+limit of an episode), ``model`` (the exact FiniteMDP behind an env, for the error
+curve) and ``progress``. Each public function lists its own options in its signature
+and takes the shared ones as ``**options: Unpack[LearnOptions]`` (editors and mypy show
+their names and types).
 
 Layout
 ------
@@ -36,13 +38,16 @@ Layout
 ``td_kernels``  the TD episode loops, one per family (TD(0), one-step control, n-step,
                 lambda, Dyna-Q), each taking the same named tuples (``Model``,
                 ``Tables``, ``Settings``, ``Episodes``); ``many_runs`` runs R seeds in
-                one parallel (numba ``prange``) call.
-``td``          the TD learners: ``TD_ENTRIES`` (one entry per algorithm), the driver
-                ``_learn`` (ground truth, recording, seeding, chunking, progress,
-                ``LearnResult``), the public functions generated from the entries, and
-                ``seed_study``.
-``mc``          Monte Carlo prediction, control and off-policy learning, on the same
-                conventions (``Behaviour``, ``EpisodeBuffers``, a parallel many-runs call).
+                one parallel (numba ``prange``) call. ``mc`` holds Monte Carlo's loop.
+``driver``      the one driver of every built-in learner: an entry turns a call into
+                a ``Plan`` (checked options, the problem, the exact answer, how to start
+                one run or many); ``learn`` runs it for one seed (ground truth, seeding,
+                chunks with progress, recording, :class:`LearnResult`), ``seed_study``
+                for many seeds in one compiled call. ``LearnOptions``: the shared options.
+``td``, ``mc``  the entries (``TD_ENTRIES``: one ``TDEntry`` per TD algorithm;
+                ``MC_ENTRIES``: one ``MCEntry`` per Monte Carlo one, whose ``setup``
+                maps its own options to the behaviour, update and ground truth) and the
+                public functions, each one line: ``return learn_entry(name, locals())``.
 ``schedules``, ``truth``, ``common``, ``result``, ``registry``: schedules, the exact
                 answer and the error, shared checks and the general path's
                 ``StateIndex``/``GymStepper``, :class:`LearnResult`, and the registry
@@ -57,14 +62,15 @@ How to add a learner
 3. Add a ``TDEntry`` to ``TD_ENTRIES`` in ``td.py`` (name, function name, family, the
    title and equation of its docstring, its own ``Option``s with annotation/default),
    then run ``python -m policylab.tabular._generate``: it writes the public function's
-   signature and docstring; the registry, ``policylab learn`` and ``seed_study`` read
-   the entry. Export the function here.
+   signature and docstring; the driver, the registry, ``policylab learn`` and
+   ``seed_study`` read the entry. Export the function here.
 4. Any other learner function: ``register_algorithm("name", fn, "one line", options=
    (Option("--flag", "param", "float", "help"),), kind="control")``; ``policylab learn``
    lists it and passes its options (tests/tabular/test_registry.py does this).
 """
 
 from policylab.tabular.common import Recorder, StateIndex, checkpoint_episodes, run_seeds
+from policylab.tabular.driver import LearnOptions, SeedRuns, seed_study
 from policylab.tabular.mc import mc_control, mc_off_policy, mc_prediction
 from policylab.tabular.registry import (
     AlgorithmSpec,
@@ -76,7 +82,6 @@ from policylab.tabular.registry import (
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, schedule_value
 from policylab.tabular.td import (
-    SeedRuns,
     double_q_learning,
     dyna_q,
     expected_sarsa,
@@ -85,7 +90,6 @@ from policylab.tabular.td import (
     q_learning,
     sarsa,
     sarsa_lambda,
-    seed_study,
     td0,
     td_lambda,
 )
@@ -94,6 +98,7 @@ from policylab.tabular.truth import GroundTruth, greedy_probs
 __all__ = [
     "AlgorithmSpec",
     "GroundTruth",
+    "LearnOptions",
     "LearnResult",
     "Option",
     "Recorder",

@@ -15,37 +15,11 @@ from pathlib import Path
 
 START, END = "# <generated learners>\n", "# </generated learners>\n"
 
-#: The parameters every TD learner takes besides its own: (name, annotation, default, doc).
-_SHARED_HEAD = (("episodes", "int", None, "Number of episodes."),)
-_SHARED_TAIL = (
-    ("gamma", "float | None", "None", "Discount rate (default: the problem's)."),
-    ("seed", "Seed", "None", "Seed or Generator; same seed, same result."),
-)
-_SHARED_END = (
-    (
-        "checkpoints",
-        "int",
-        "50",
-        "About how many points of the error curve against the exact answer.",
-    ),
-    ("max_steps", "int", "10_000", "Step limit of an episode (then truncated: bootstrap)."),
-    ("model", "FiniteMDP | None", "None", "The FiniteMDP behind an env, for the error curve."),
-    ("progress", "bool", "False", "Show a progress bar."),
-)
+_OPTIONS = "The options every learner shares, :class:`~policylab.tabular.LearnOptions`."
 _PROBLEM = "A FiniteMDP (compiled) or a Gymnasium env with Discrete observations."
-_POLICY = (
-    "The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default: "
-    "the equiprobable random policy)."
-)
-_RETURNS_CONTROL = (
-    "A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error "
-    "against q* where the model is known."
-)
-_RETURNS_PREDICTION = (
-    "A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where "
-    "the model is known. Prediction learns V only: ``q`` is its one-step lookahead "
-    "through the model (zeros without one) and ``policy`` is the policy evaluated."
-)
+_POLICY = "A :class:`~policylab.Policy` or an (S, A) array (default: equiprobable)."
+_RETURNS_CONTROL = "A :class:`LearnResult` (the error is against q* where the model is known)."
+_RETURNS_PREDICTION = "A :class:`LearnResult` (the error of V is against v_pi, as above)."
 
 
 def _arg_doc(name: str, doc: str) -> list[str]:
@@ -58,21 +32,19 @@ def render_learner(entry: object) -> str:
     from policylab.tabular.td import _ALPHA, _EPSILON, _INIT, TDEntry
 
     assert isinstance(entry, TDEntry)
-    episodes = (("episodes", "int", str(entry.default_episodes), "Number of episodes."),)
-    shared_opts = (_ALPHA, *((_EPSILON,) if entry.control else ()))
+    episodes = ("episodes", "int", str(entry.default_episodes), "Number of episodes.")
+    shared_opts = (_ALPHA, *((_EPSILON,) if entry.control else ()), _INIT)
     params = [
         *((o.param, o.annotation, o.value, o.doc or o.help) for o in entry.own),
-        *episodes,
+        episodes,
         *((o.param, o.annotation, o.value, o.doc or o.help) for o in shared_opts),
-        *_SHARED_TAIL,
-        (_INIT.param, _INIT.annotation, _INIT.value, _INIT.doc),
-        *_SHARED_END,
     ]
     sig = ["    problem: FiniteMDP | Any,"]
     if not entry.control:
         sig.append("    policy: Policy | Any = None,")
     sig.append("    *,")
     sig += [f"    {name}: {ann} = {default}," for name, ann, default, _ in params]
+    sig.append("    **options: Unpack[LearnOptions],")
     doc = ['    """' + entry.title, ""]
     doc += ["    " + line for line in entry.equation.splitlines()]
     doc += ["", "    Args:", *_arg_doc("problem", _PROBLEM)]
@@ -80,10 +52,11 @@ def render_learner(entry: object) -> str:
         doc += _arg_doc("policy", _POLICY)
     for name, _, _, text in params:
         doc += _arg_doc(name, text)
+    doc += _arg_doc("**options", _OPTIONS)
     returns = _RETURNS_CONTROL if entry.control else _RETURNS_PREDICTION
     doc += ["", "    Returns:", *(" " * 8 + x for x in textwrap.wrap(returns, width=88))]
     doc.append('    """')
-    call = [f'    return _learn_entry("{entry.name}", locals())']
+    call = [f'    return learn_entry("{entry.name}", locals())']
     return "\n".join([f"def {entry.function}(", *sig, ") -> LearnResult:", *doc, *call]) + "\n"
 
 

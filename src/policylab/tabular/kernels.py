@@ -9,7 +9,8 @@ kernels. The pieces here are shared by every algorithm (Monte Carlo, TD family):
   in an array that the kernel advances in place (so a run can be split into chunks
   between checkpoints and still give the same numbers). Same seed, same result.
 * **The model.** :class:`KernelMDP` holds the arrays a kernel reads: ``indptr``,
-  ``next_states``, ``probs``, ``rewards`` (row ``s * A + a``), ``terminal``,
+  ``next_states``, ``probs`` (and their running sums ``cdf``), ``rewards`` (row
+  ``s * A + a``), ``terminal``,
   ``action_mask``, ``initial_cdf``. :func:`sample_next` draws one transition,
   :func:`sample_start` a start state. A draw with one possible outcome consumes no
   random number, so on a deterministic MDP only the policy uses the RNG (this is what
@@ -24,7 +25,10 @@ kernels. The pieces here are shared by every algorithm (Monte Carlo, TD family):
 
 Every function here is also callable from plain Python (numba dispatches), which is
 how the general path over a Gymnasium env reuses the same action choice and update
-rules.
+rules. The helpers of the step loops (the RNG draws, :func:`sample_next`,
+:func:`epsilon_greedy_at`) are inlined into the loops (``inline="always"``): called as
+functions, every array argument cost a reference-count increment and decrement, which
+was most of the time of a step.
 """
 
 from __future__ import annotations
@@ -57,10 +61,12 @@ __all__ = [
     "env_step",
     "episode_buffers",
     "epsilon_greedy_action",
+    "epsilon_greedy_at",
     "epsilon_greedy_prob",
     "exploring_start_state",
     "generate_episode",
     "greedy_action",
+    "outcome_cdf",
     "rand_below",
     "rand_uniform",
     "rng_states",
@@ -90,12 +96,12 @@ def rng_states(seed: int | np.random.Generator | None, n_runs: int = 1) -> NDArr
     return st
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def _rotl(x: np.uint64, k: int) -> np.uint64:  # pragma: no cover - compiled
     return (x << np.uint64(k)) | (x >> np.uint64(64 - k))
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def rand_uniform(state: NDArray[np.uint64]) -> float:  # pragma: no cover - compiled
     """A uniform float in [0, 1) from a xoshiro256+ state (advanced in place)."""
     s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
@@ -111,7 +117,7 @@ def rand_uniform(state: NDArray[np.uint64]) -> float:  # pragma: no cover - comp
     return float(result >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def rand_below(state: NDArray[np.uint64], n: int) -> int:  # pragma: no cover - compiled
     """A uniform integer in [0, n)."""
     k = int(rand_uniform(state) * n)
@@ -138,15 +144,54 @@ def _draw_from(
     return last
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def sample_next(
     indptr: NDArray[np.int64],
-    probs: NDArray[np.float64],
+    cdf: NDArray[np.float64],
     row: int,
     state: NDArray[np.uint64],
 ) -> int:  # pragma: no cover - compiled
-    """The outcome index k of row ``s * A + a`` drawn from p(s', r | s, a)."""
-    return _draw_from(probs, indptr[row], indptr[row + 1], state)
+    """The outcome index k of row ``s * A + a`` drawn from p(s', r | s, a).
+
+    One uniform u (none if the row has one outcome), then the first k with u < cdf[k]:
+    ``cdf`` is the row's running sum of probabilities (:func:`outcome_cdf`), +inf from
+    its last positive outcome on, so that k is the number of entries with u >= cdf[k]
+    (a count without a data-dependent branch).
+    """
+    lo = indptr[row]
+    if indptr[row + 1] - lo == 1:
+        return lo  # type: ignore[no-any-return]
+    u = rand_uniform(state)
+    k = lo
+    for j in range(lo, indptr[row + 1] - 1):  # counting, not searching: no branch to miss
+        k += u >= cdf[j]
+    return k  # type: ignore[no-any-return]
+
+
+@nb.njit(cache=True, nogil=True)
+def outcome_cdf(
+    indptr: NDArray[np.int64], probs: NDArray[np.float64]
+) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Each outcome row's running sum of probabilities, +inf from its last positive one.
+
+    The sums are those :func:`_draw_from` accumulates (zeros add nothing), so
+    :func:`sample_next` picks exactly the outcome the running-sum loop would for the
+    same uniform, including the last positive outcome when rounding leaves u above
+    the row's total.
+    """
+    cdf = np.zeros(probs.shape[0])
+    for row in range(indptr.shape[0] - 1):
+        lo, hi = indptr[row], indptr[row + 1]
+        acc = 0.0
+        last = -1
+        for k in range(lo, hi):
+            if probs[k] > 0.0:
+                acc += probs[k]
+                last = k
+            cdf[k] = acc
+        if last >= 0:
+            cdf[last:hi] = np.inf
+    return cdf
 
 
 @nb.njit(cache=True, nogil=True)
@@ -192,18 +237,31 @@ def _n_available(mask_row: NDArray[np.bool_]) -> int:  # pragma: no cover - comp
     return n
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _uniform_at(
+    mask: NDArray[np.bool_], s: int, state: NDArray[np.uint64]
+) -> int:  # pragma: no cover - compiled
+    """A uniform action of A(s), row ``s`` of the (S, A) mask (one draw)."""
+    n_actions = mask.shape[1]
+    n_avail = 0
+    for a in range(n_actions):
+        n_avail += mask[s, a]
+    k = rand_below(state, n_avail)
+    for a in range(n_actions):
+        if mask[s, a]:
+            if k == 0:
+                return a
+            k -= 1
+    return -1
+
+
 @nb.njit(cache=True, nogil=True)
 def uniform_action(
     mask_row: NDArray[np.bool_], state: NDArray[np.uint64]
 ) -> int:  # pragma: no cover
     """A uniform action of A(s) (one draw)."""
-    k = rand_below(state, _n_available(mask_row))
-    for a in range(mask_row.shape[0]):
-        if mask_row[a]:
-            if k == 0:
-                return a
-            k -= 1
-    return -1
+    n = mask_row.shape[0]
+    return _uniform_at(np.ascontiguousarray(mask_row).reshape((1, n)), 0, state)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -238,6 +296,46 @@ def greedy_action(
     return best
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def epsilon_greedy_at(
+    q: NDArray[np.float64],
+    mask: NDArray[np.bool_],
+    s: int,
+    epsilon: float,
+    state: NDArray[np.uint64],
+) -> int:  # pragma: no cover - compiled
+    """Epsilon-greedy on Q(s, .) over A(s): uniform with probability epsilon, else greedy.
+
+    ``q`` and ``mask`` are whole (S, A) tables and ``s`` the row (indexing them here
+    rather than passing row views keeps the compiled step loops free of array
+    temporaries). Draws: one uniform u (skipped when epsilon is 0); if u < epsilon a
+    uniform action of A(s); else a greedy action, ties broken uniformly (one more draw
+    only if tied).
+    """
+    n_actions = q.shape[1]
+    if epsilon > 0.0 and rand_uniform(state) < epsilon:
+        return _uniform_at(mask, s, state)
+    best_q = -np.inf
+    for a in range(n_actions):  # max over A(s), written to compile to selects, not branches
+        x = q[s, a]
+        best_q = x if (mask[s, a] and x > best_q) else best_q
+    n_best = 0
+    first = -1
+    for a in range(n_actions):
+        hit = mask[s, a] and q[s, a] == best_q
+        n_best += hit
+        first = a if (hit and first < 0) else first
+    if n_best == 1:  # one greedy action: no tie to break
+        return first
+    k = rand_below(state, n_best)
+    for a in range(n_actions):
+        if mask[s, a] and q[s, a] == best_q:
+            if k == 0:
+                return a
+            k -= 1
+    return -1
+
+
 @nb.njit(cache=True, nogil=True)
 def epsilon_greedy_action(
     q_row: NDArray[np.float64],
@@ -245,35 +343,15 @@ def epsilon_greedy_action(
     epsilon: float,
     state: NDArray[np.uint64],
 ) -> int:  # pragma: no cover - compiled
-    """Epsilon-greedy on Q(s, .) over A(s): uniform with probability epsilon, else greedy.
-
-    Draws: one uniform u (skipped when epsilon is 0); if u < epsilon a uniform action
-    of A(s); else a greedy action, ties broken uniformly (one more draw only if tied).
-    """
-    if epsilon > 0.0 and rand_uniform(state) < epsilon:
-        return uniform_action(mask_row, state)
-    best_q = -np.inf
-    n_best = 0
-    first = -1
-    for a in range(q_row.shape[0]):
-        if mask_row[a]:
-            if q_row[a] > best_q:
-                best_q = q_row[a]
-                n_best = 1
-                first = a
-            elif q_row[a] == best_q:
-                n_best += 1
-                if first < 0:  # the first of equal -inf values
-                    first = a
-    if n_best == 1:  # one greedy action: no tie to break, no second pass
-        return first
-    k = rand_below(state, n_best)
-    for a in range(q_row.shape[0]):
-        if mask_row[a] and q_row[a] == best_q:
-            if k == 0:
-                return a
-            k -= 1
-    return -1
+    """:func:`epsilon_greedy_at` on one row Q(s, .) and A(s) (the same draws)."""
+    n = q_row.shape[0]
+    return epsilon_greedy_at(
+        np.ascontiguousarray(q_row).reshape((1, n)),
+        np.ascontiguousarray(mask_row).reshape((1, n)),
+        0,
+        epsilon,
+        state,
+    )
 
 
 @nb.njit(cache=True, nogil=True)
@@ -301,7 +379,7 @@ def epsilon_greedy_prob(
 class Model(NamedTuple):
     """The arrays of a FiniteMDP that a kernel samples (a :class:`KernelMDP`, as a tuple).
 
-    ``indptr``, ``next_states``, ``probs``, ``rewards``: the outcome table (row
+    ``indptr``, ``next_states``, ``cdf``, ``rewards``: the outcome table (row
     ``s * A + a``); ``terminal``; ``initial``: the start distribution; ``mask``: A(s).
     On the general path (a Gymnasium env steps instead) the first six are empty arrays
     of the same types and ``mask`` is A(s).
@@ -309,7 +387,7 @@ class Model(NamedTuple):
 
     indptr: Any
     next_states: Any
-    probs: Any
+    cdf: Any
     rewards: Any
     terminal: Any
     initial: Any
@@ -427,7 +505,7 @@ def generate_episode(
         eps = behaviour_epsilon(behaviour.by_state, behaviour.epsilon, epsilon, visits[s])
         explore = behaviour.exploring_starts and t == 0
         a, b = choose_action(behaviour.kind, explore, behaviour.pi[s], q[s], mask[s], eps, rng)
-        k = sample_next(model.indptr, model.probs, s * n_actions + a, rng)
+        k = sample_next(model.indptr, model.cdf, s * n_actions + a, rng)
         buf.a[t] = a
         buf.b[t] = b
         buf.r[t] = model.rewards[k]
@@ -454,7 +532,7 @@ def env_step(
     rng: Any,
     indptr: Any,
     next_states: Any,
-    probs: Any,
+    cdf: Any,
     rewards: Any,
     terminal: Any,
     n_actions: int,
@@ -475,11 +553,11 @@ def _env_reset_model(env, initial, rng):  # type: ignore[no-untyped-def]  # prag
 
 
 @overload(env_step)
-def _env_step_model(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _env_step_model(env, s, a, rng, indptr, next_states, cdf, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]  # pragma: no cover
     if isinstance(env, types.NoneType):
 
-        def impl(env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]
-            k = sample_next(indptr, probs, s * n_actions + a, rng)
+        def impl(env, s, a, rng, indptr, next_states, cdf, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]
+            k = sample_next(indptr, cdf, s * n_actions + a, rng)
             nxt = int(next_states[k])
             return nxt, float(rewards[k]), bool(terminal[nxt]), False
 
@@ -504,6 +582,7 @@ class KernelMDP:
     indptr: NDArray[np.int64]
     next_states: NDArray[np.int32]
     probs: NDArray[np.float64]
+    cdf: NDArray[np.float64]
     rewards: NDArray[np.float64]
     terminal: NDArray[np.bool_]
     mask: NDArray[np.bool_]
@@ -517,6 +596,7 @@ class KernelMDP:
             writable(mdp.indptr, np.int64),
             writable(mdp.next_states, np.int32),
             writable(mdp.probs, np.float64),
+            outcome_cdf(writable(mdp.indptr, np.int64), writable(mdp.probs, np.float64)),
             writable(mdp.rewards, np.float64),
             writable(mdp.terminal, np.bool_),
             writable(mdp.action_mask, np.bool_),

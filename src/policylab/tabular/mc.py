@@ -28,11 +28,9 @@ Each runs on a :class:`~policylab.FiniteMDP` (compiled kernels) or on a Gymnasiu
 
 from __future__ import annotations
 
-import contextvars
-import time
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple, Unpack
 
 import numba as nb
 import numpy as np
@@ -40,17 +38,22 @@ from numba import prange
 
 from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
 from policylab.tabular.common import (
-    Recorder,
     StateIndex,
     as_env,
-    check_episodes,
     check_gamma,
-    checkpoint_episodes,
     env_name,
     grow_rows,
     is_finite_mdp,
-    progress_bar,
     start_state,
+)
+from policylab.tabular.driver import (
+    LearnOptions,
+    Many,
+    Plan,
+    Run,
+    add_entries,
+    check_shared,
+    learn_entry,
 )
 from policylab.tabular.kernels import (
     EPSILON_GREEDY,
@@ -63,7 +66,6 @@ from policylab.tabular.kernels import (
     choose_action,
     exploring_start_state,
     generate_episode,
-    rng_states,
     writable,
 )
 from policylab.tabular.registry import Option, register_algorithm
@@ -81,7 +83,6 @@ from policylab.tabular.rules.mc import (
 )
 from policylab.tabular.schedules import CONSTANT, Schedule, as_schedule, schedule_value
 from policylab.tabular.truth import GroundTruth, greedy_probs
-from policylab.validation import as_generator
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -275,154 +276,128 @@ def _grow_flat(arr: NDArray[Any], n: int) -> NDArray[Any]:
     return out
 
 
-# =============================================================================== driver
-def _run(
-    algorithm: str,
-    problem: Any,
-    *,
-    kind: int,
-    episodes: int,
-    seed: Seed,
-    gamma: float | None,
-    policy: Policy | Callable[[Any], Any] | None,
-    policy_kind: int,
-    epsilon: Schedule,
-    exploring_starts: bool,
-    eps_by_state: bool,
-    first_visit: bool,
-    alpha: Schedule,
-    weighted: bool,
-    target: Policy | None,
-    truth_kind: Literal["prediction", "control"],
-    truth_policy: Policy | None,
-    error_on: Literal["v", "q"],
-    checkpoints: int,
-    max_steps: int,
-    start: Hashable | None,
-    progress: bool,
-    model: FiniteMDP | None,
-    params: dict[str, Any],
-    score: bool = True,
-) -> LearnResult:
-    """Shared body of the three learners: fast path on a FiniteMDP, else the env loop."""
-    episodes = check_episodes(episodes)
-    max_steps = check_episodes(max_steps, "max_steps")
-    ckpts = checkpoint_episodes(episodes, checkpoints)
+# =============================================================================== the plan
+class _Setup(NamedTuple):
+    """What one Monte Carlo learner call sets (the rest is shared): its entry's data.
+
+    ``kind``: the update (:data:`AVERAGE`, :data:`IS_PREDICTION`, :data:`IS_CONTROL`);
+    ``policy``/``policy_kind``: the behaviour (a fixed policy, or epsilon-greedy in Q
+    with ``epsilon``, by state visits with ``eps_by_state``, from ``exploring_starts``);
+    ``first_visit``, ``alpha``, ``weighted`` and ``target`` of the update;
+    ``truth_kind``, ``truth_policy`` and ``error_on``: what the error is measured
+    against; ``params``: the result's record of the settings.
+    """
+
+    kind: int
+    policy: Any
+    policy_kind: int
+    epsilon: Schedule
+    eps_by_state: bool
+    exploring_starts: bool
+    first_visit: bool
+    alpha: Schedule
+    weighted: bool
+    target: Policy | None
+    truth_kind: Literal["prediction", "control"]
+    truth_policy: Policy | None
+    error_on: Literal["v", "q"]
+    params: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class MCEntry:
+    """One Monte Carlo learner for the driver: its name and how its options set it up.
+
+    Attributes:
+        name: Registry and command-line name.
+        setup: ``setup(args)``: the :class:`_Setup` of a call's arguments, checked.
+    """
+
+    name: str
+    setup: Callable[[dict[str, Any]], _Setup]
+
+    def plan(self, args: dict[str, Any]) -> Plan:
+        """The driver's :class:`~policylab.tabular.driver.Plan` of a call of this learner."""
+        return _plan(self.name, args, self.setup(args))
+
+
+def _plan(name: str, args: dict[str, Any], st: _Setup) -> Plan:
+    """The plan of a Monte Carlo call: the compiled path on a FiniteMDP, else the env loop."""
+    episodes, max_steps, checkpoints = check_shared(args)
+    problem, start = args["problem"], args["start"]
     mdp: FiniteMDP | None
     if is_finite_mdp(problem):
-        mdp = problem
-        env = None
+        mdp, env = problem, None
     else:
         env = as_env(problem)
-        mdp = model if model is not None else getattr(getattr(env, "unwrapped", env), "mdp", None)
+        mdp = args["model"]
+        if mdp is None:
+            mdp = getattr(getattr(env, "unwrapped", env), "mdp", None)
         if start is not None:
             raise InvalidArgumentError(
                 "start= is only supported on a FiniteMDP; reset the env instead"
             )
-    g = check_gamma(gamma, mdp.gamma if mdp is not None else 1.0)
+    g = check_gamma(args["gamma"], mdp.gamma if mdp is not None else 1.0)
     if mdp is not None and not mdp.terminal.any():
         raise InvalidArgumentError(
             f"Monte Carlo needs an episodic task; {mdp.name!r} has no terminal state (use a TD "
             "method for continuing tasks)"
         )
-    if env is None and _PLAN.get():  # seed_study asks for the compiled run, not a result
-        assert mdp is not None  # the compiled path always has a model
-        model_, behaviour, settings = _fast_setup(
-            mdp, policy, policy_kind, epsilon, eps_by_state, exploring_starts, start,
-            kind, g, first_visit, alpha, weighted, target,
-        )  # fmt: skip
-        raise _Planned(
-            _Plan(
-                algorithm, mdp, model_, behaviour, settings, episodes, max_steps,
-                _keeps_v(kind, truth_kind),
-            )
-        )  # fmt: skip
-    truth: GroundTruth | None = None
-    if mdp is not None and score:
-        if truth_kind == "prediction":
-            assert truth_policy is not None  # set by the callers, never from user input
-            truth = GroundTruth.prediction(mdp, truth_policy, on=error_on, gamma=g)
-        else:
-            truth = GroundTruth.control(mdp, on=error_on, gamma=g)
-    rec = Recorder(truth, ckpts)
-    gen = as_generator(seed)
-    rng = rng_states(gen, 1)[0]
-    t0 = time.perf_counter()
-    if env is None and mdp is not None:
-        model_, behaviour, settings = _fast_setup(
-            mdp, policy, policy_kind, epsilon, eps_by_state, exploring_starts, start,
-            kind, g, first_visit, alpha, weighted, target,
-        )  # fmt: skip
-        run = _mc_run(mdp.n_states, mdp.n_actions, max_steps, episodes)
-        steps = truncated = 0
-        with progress_bar(progress, episodes, algorithm) as advance:
-            for k0, k1 in rec.chunks():
-                st, tr = _mc_chunk(model_, behaviour, settings, run, rng, k0, k1)
-                steps += st
-                truncated += tr
-                rec.record(run.q, run.tables.v)
-                advance(k1 - k0)
-        index_labels: tuple[Hashable, ...] = mdp.states
+    keeps_v = _keeps_v(st.kind, st.truth_kind)
+
+    def truth() -> GroundTruth | None:
+        if mdp is None or not args["score"]:
+            return None
+        if st.truth_kind == "prediction":
+            assert st.truth_policy is not None  # set by the setups, never from user input
+            return GroundTruth.prediction(mdp, st.truth_policy, on=st.error_on, gamma=g)
+        return GroundTruth.control(mdp, on=st.error_on, gamma=g)
+
+    many: Callable[[NDArray[np.uint64]], Many] | None = None
+    if env is None:
+        assert mdp is not None
+        fm: FiniteMDP = mdp
+        model, behaviour, settings = _fast_setup(fm, st, start, g)
+        S, A = fm.n_states, fm.n_actions
+
+        def start_run(rng: NDArray[np.uint64], gen: np.random.Generator) -> Run:
+            arrays = _mc_run(S, A, max_steps, episodes)
+            return _CompiledRun(fm, model, behaviour, settings, arrays, rng, keeps_v)
+
+        def many(rngs: NDArray[np.uint64]) -> Many:
+            runs = _mc_run(S, A, max_steps, episodes, n_runs=rngs.shape[0])
+            counts = _many_mc_runs(model, behaviour, settings, _stack(runs), rngs, episodes)
+            mask, terminal = _mask_terminal(fm)
+            q, v = _q_and_v(runs.q, runs.tables.v, mask, terminal, keeps_v)
+            return Many(runs.returns, runs.lengths, q, v, None, int(counts[:, 0].sum()))
+
     else:
-        run, steps, truncated, index_labels = _run_env(
-            env,
-            mdp,
-            rec,
-            rng,
-            gen,
-            episodes=episodes,
-            policy=policy,
-            behaviour=Behaviour(
-                policy_kind, np.zeros((0, 0)), epsilon.params, eps_by_state, exploring_starts
-            ),
-            settings=MCSettings(g, kind, first_visit, alpha.params, weighted, np.zeros(0)),
-            target=target,
-            max_steps=max_steps,
-            progress=progress,
-            name=algorithm,
-        )
-    seconds = time.perf_counter() - t0
-    S = len(index_labels)
-    if mdp is not None:
-        mask = np.asarray(mdp.action_mask, dtype=bool)
-        terminal = np.asarray(mdp.terminal, dtype=bool)
-        actions = mdp.actions
-    else:
-        mask = np.ones((S, run.q.shape[1]), dtype=bool)
-        terminal = np.zeros(S, dtype=bool)
-        actions = tuple(range(run.q.shape[1]))
-    q, v = _q_and_v(run.q[:S], run.tables.v[:S], mask, terminal, _keeps_v(kind, truth_kind))
-    return LearnResult(
-        algorithm=algorithm,
+
+        def start_run(rng: NDArray[np.uint64], gen: np.random.Generator) -> Run:
+            return _EnvRun(env, mdp, st, g, rng, gen, episodes, max_steps, name)
+
+    return Plan(
+        algorithm=name,
         problem=mdp.name if mdp is not None else env_name(env),
-        states=tuple(index_labels),
-        actions=tuple(actions),
-        q=q,
-        v=v,
-        policy=greedy_probs(q, mask),
-        terminal=terminal,
-        action_mask=mask,
-        counts=run.tables.nq[: S * q.shape[1]].reshape(S, q.shape[1]).copy(),
-        episodes=episodes,
-        steps=int(steps),
-        seconds=seconds,
-        episode_returns=run.returns,
-        truncated=int(truncated),
-        episode_lengths=run.lengths,
-        params={
-            **params,
-            "gamma": g,
-            "seed": seed if isinstance(seed, (int, np.integer)) else None,
-            "path": "compiled" if env is None else "gymnasium",
-        },
         mdp=mdp,
-        **rec.arrays(),
+        episodes=episodes,
+        checkpoints=checkpoints,
+        gamma=g,
+        params=st.params,
+        truth=truth,
+        start=start_run,
+        many=many,
+        compiled=env is None,
     )
 
 
 def _keeps_v(kind: int, truth_kind: str) -> bool:
     """Whether V is learned itself (prediction) rather than read off Q as max_a Q."""
     return (kind == AVERAGE and truth_kind == "prediction") or kind == IS_PREDICTION
+
+
+def _mask_terminal(mdp: FiniteMDP) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    return np.asarray(mdp.action_mask, dtype=bool), np.asarray(mdp.terminal, dtype=bool)
 
 
 def _q_and_v(
@@ -432,209 +407,223 @@ def _q_and_v(
     terminal: NDArray[np.bool_],
     keeps_v: bool,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The result's Q (0 off A(s)) and V (learned, or max over A(s) of Q; 0 if terminal)."""
+    """The result's Q (0 off A(s)) and V (learned, or max over A(s) of Q; 0 if terminal).
+
+    ``q`` (..., S, A) and ``v_learned`` (..., S) may carry a leading run axis.
+    """
     q = np.where(mask, q, 0.0)
     if keeps_v:
         v = v_learned.copy()
     else:
-        v = np.where(mask, q, -np.inf).max(axis=1)
-        v[~mask.any(axis=1)] = 0.0
-    v[terminal] = 0.0
+        v = np.where(mask, q, -np.inf).max(axis=-1)
+        v[..., ~mask.any(axis=1)] = 0.0
+    v[..., terminal] = 0.0
     return q, v
 
 
+def _outcome(
+    run: _MCRun,
+    labels: tuple[Hashable, ...],
+    mdp: FiniteMDP | None,
+    truncated: int,
+    keeps_v: bool,
+) -> dict[str, Any]:
+    """The :class:`LearnResult` fields of a finished Monte Carlo run over ``labels``."""
+    S, A = len(labels), run.q.shape[1]
+    if mdp is not None:
+        mask, terminal = _mask_terminal(mdp)
+        actions = mdp.actions
+    else:
+        mask, terminal = np.ones((S, A), dtype=bool), np.zeros(S, dtype=bool)
+        actions = tuple(range(A))
+    q, v = _q_and_v(run.q[:S], run.tables.v[:S], mask, terminal, keeps_v)
+    return {
+        "states": tuple(labels),
+        "actions": tuple(actions),
+        "q": q,
+        "v": v,
+        "policy": greedy_probs(q, mask),
+        "terminal": terminal,
+        "action_mask": mask,
+        "counts": run.tables.nq[: S * A].reshape(S, A).copy(),
+        "episode_returns": run.returns,
+        "truncated": int(truncated),
+        "episode_lengths": run.lengths,
+    }
+
+
 def _fast_setup(
-    mdp: FiniteMDP,
-    policy: Any,
-    policy_kind: int,
-    epsilon: Schedule,
-    eps_by_state: bool,
-    exploring_starts: bool,
-    start: Hashable | None,
-    kind: int,
-    gamma: float,
-    first_visit: bool,
-    alpha: Schedule,
-    weighted: bool,
-    target: Policy | None,
+    mdp: FiniteMDP, st: _Setup, start: Hashable | None, gamma: float
 ) -> tuple[Model, Behaviour, MCSettings]:
     """The compiled path's model, behaviour and update settings."""
     km = KernelMDP.of(mdp, gamma)
     S, A = mdp.n_states, mdp.n_actions
-    pi = writable(policy.probs if policy_kind == FIXED_POLICY else np.zeros((S, A)), np.float64)
-    tgt = writable(target.probs.ravel() if target is not None else np.zeros(S * A), np.float64)
+    fixed = st.policy_kind == FIXED_POLICY
+    pi = writable(st.policy.probs if fixed else np.zeros((S, A)), np.float64)
+    target = st.target.probs.ravel() if st.target is not None else np.zeros(S * A)
     initial = writable(start_state(mdp, start), np.float64)
     model = Model(
-        km.indptr, km.next_states, km.probs, km.rewards, km.terminal, initial, km.mask
+        km.indptr, km.next_states, km.cdf, km.rewards, km.terminal, initial, km.mask
     )  # fmt: skip
-    behaviour = Behaviour(policy_kind, pi, epsilon.params, eps_by_state, exploring_starts)
-    return model, behaviour, MCSettings(gamma, kind, first_visit, alpha.params, weighted, tgt)
-
-
-@dataclass(frozen=True)
-class _Plan:
-    """A compiled Monte Carlo run, set up but not run (what :func:`seed_study` runs)."""
-
-    algorithm: str
-    mdp: FiniteMDP
-    model: Model
-    behaviour: Behaviour
-    settings: MCSettings
-    episodes: int
-    max_steps: int
-    keeps_v: bool
-
-
-class _Planned(Exception):  # noqa: N818  (not an error: carries the plan out of a learner)
-    """Raised by a learner called under :func:`planned_run` instead of running."""
-
-    def __init__(self, plan: _Plan) -> None:
-        super().__init__(plan.algorithm)
-        self.plan = plan
-
-
-_PLAN: contextvars.ContextVar[bool] = contextvars.ContextVar("_PLAN", default=False)
-
-
-def planned_run(learner: Callable[..., Any], problem: Any, **kwargs: Any) -> _Plan:
-    """The compiled run a Monte Carlo learner call would make, checked but not run."""
-    token = _PLAN.set(True)
-    try:
-        learner(problem, **kwargs)
-    except _Planned as planned:
-        return planned.plan
-    finally:
-        _PLAN.reset(token)
-    raise InvalidArgumentError("seed_study runs Monte Carlo learners on a FiniteMDP only")
-
-
-def many_mc_runs(
-    plan: _Plan, rngs: NDArray[np.uint64], workers_limited: bool = False
-) -> tuple[_MCRun, NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
-    """Run ``plan`` once per RNG state in one parallel compiled call.
-
-    Returns the stacked runs, (R, 2) steps and truncated episodes, and the (R, S, A) Q
-    and (R, S) V of the results.
-    """
-    mdp = plan.mdp
-    S, A, R = mdp.n_states, mdp.n_actions, rngs.shape[0]
-    runs = _mc_run(S, A, plan.max_steps, plan.episodes, n_runs=R)
-    counts = _many_mc_runs(
-        plan.model, plan.behaviour, plan.settings, _stack(runs), rngs, plan.episodes
+    behaviour = Behaviour(
+        st.policy_kind, pi, st.epsilon.params, st.eps_by_state, st.exploring_starts
     )
-    mask = np.asarray(mdp.action_mask, dtype=bool)
-    terminal = np.asarray(mdp.terminal, dtype=bool)
-    qv = [_q_and_v(runs.q[r], runs.tables.v[r], mask, terminal, plan.keeps_v) for r in range(R)]
-    return runs, counts, np.stack([q for q, _ in qv]), np.stack([v for _, v in qv])
+    settings = MCSettings(
+        gamma, st.kind, st.first_visit, st.alpha.params, st.weighted, writable(target, np.float64)
+    )
+    return model, behaviour, settings
+
+
+class _CompiledRun:
+    """One compiled Monte Carlo run: the kernel called chunk by chunk on the model."""
+
+    def __init__(
+        self,
+        mdp: FiniteMDP,
+        model: Model,
+        behaviour: Behaviour,
+        settings: MCSettings,
+        run: _MCRun,
+        rng: NDArray[np.uint64],
+        keeps_v: bool,
+    ) -> None:
+        self.mdp, self.model, self.behaviour, self.settings = mdp, model, behaviour, settings
+        self.run, self.rng, self.keeps_v, self.truncated = run, rng, keeps_v, 0
+
+    def __call__(self, k0: int, k1: int) -> int:
+        steps, truncated = _mc_chunk(
+            self.model, self.behaviour, self.settings, self.run, self.rng, k0, k1
+        )
+        self.truncated += truncated
+        return int(steps)
+
+    def estimate(self) -> tuple[Any, Any, None]:
+        return self.run.q, self.run.tables.v, None
+
+    def outcome(self) -> dict[str, Any]:
+        return _outcome(self.run, self.mdp.states, self.mdp, self.truncated, self.keeps_v)
 
 
 # =============================================================================== general path
-def _run_env(
-    env: Any,
-    mdp: FiniteMDP | None,
-    rec: Recorder,
-    rng: NDArray[np.uint64],
-    gen: np.random.Generator,
-    *,
-    episodes: int,
-    policy: Any,
-    behaviour: Behaviour,
-    settings: MCSettings,
-    target: Policy | None,
-    max_steps: int,
-    progress: bool,
-    name: str,
-) -> tuple[_MCRun, int, int, tuple[Hashable, ...]]:
+class _EnvRun:
     """The general path: a plain Python loop over ``env.reset`` / ``env.step``.
 
     It chooses actions with the compiled :func:`choose_action` and updates with
     :func:`mc_episode_update`, with the same RNG state as the fast path, so on a
     deterministic MDP both give the same numbers.
     """
-    A = int(env.action_space.n)
-    own_model = False
-    if mdp is not None:
-        if mdp.n_actions != A:
+
+    def __init__(
+        self,
+        env: Any,
+        mdp: FiniteMDP | None,
+        st: _Setup,
+        gamma: float,
+        rng: NDArray[np.uint64],
+        gen: np.random.Generator,
+        episodes: int,
+        max_steps: int,
+        name: str,
+    ) -> None:
+        A = int(env.action_space.n)
+        base_mdp = getattr(getattr(env, "unwrapped", env), "mdp", None)
+        self.own_model = False
+        if mdp is not None:
+            if mdp.n_actions != A:
+                raise InvalidArgumentError(
+                    f"the model {mdp.name!r} has {mdp.n_actions} actions but the env has {A}"
+                )
+            self.own_model = base_mdp is mdp
+            own = self.own_model
+            index = StateIndex.discrete(mdp.n_states) if own else StateIndex.of_labels(mdp.states)
+            self.mask = writable(mdp.action_mask, np.bool_)
+        else:
+            index = StateIndex.for_env(env)
+            self.mask = np.ones((max(len(index), 1), A), dtype=np.bool_)
+        if st.exploring_starts and base_mdp is None:
             raise InvalidArgumentError(
-                f"the model {mdp.name!r} has {mdp.n_actions} actions but the env has {A}"
+                "exploring starts need an env that can start in a chosen state: a FiniteMDP or "
+                "policylab's MDPEnv (Gymnasium envs in general cannot be reset to a state)"
             )
-        own_model = getattr(getattr(env, "unwrapped", env), "mdp", None) is mdp
-        n_model = mdp.n_states
-        index = StateIndex.discrete(n_model) if own_model else StateIndex.of_labels(mdp.states)
-        mask = writable(mdp.action_mask, np.bool_)
-    else:
-        index = StateIndex.for_env(env)
-        mask = np.ones((max(len(index), 1), A), dtype=np.bool_)
-    if behaviour.exploring_starts and getattr(getattr(env, "unwrapped", env), "mdp", None) is None:
-        raise InvalidArgumentError(
-            "exploring starts need an env that can start in a chosen state: a FiniteMDP or "
-            "policylab's MDPEnv (Gymnasium envs in general cannot be reset to a state)"
+        S0 = max(len(index), 1)
+        self.env, self.mdp, self.st, self.index, self.rng = env, mdp, st, index, rng
+        self.run = _mc_run(S0, A, max_steps, episodes)
+        self.max_steps, self.truncated = max_steps, 0
+        self.keeps_v = _keeps_v(st.kind, st.truth_kind)
+        policy = st.policy
+        fixed = st.policy_kind == FIXED_POLICY
+        self.pi_table = (
+            writable(policy.probs, np.float64) if fixed and hasattr(policy, "probs") else None
         )
-    S0 = max(len(index), 1)
-    run = _mc_run(S0, A, max_steps, episodes)
-    pi_table = (
-        writable(policy.probs, np.float64)
-        if (behaviour.kind == FIXED_POLICY and hasattr(policy, "probs"))
-        else None
-    )
-    tgt = writable(target.probs.ravel(), np.float64) if target is not None else np.zeros(S0 * A)
-    settings = settings._replace(target=tgt)
-    no_row = np.zeros(A)
-    kind, by_state, eps_params = behaviour.kind, behaviour.by_state, behaviour.epsilon
-    seen = np.zeros(S0, dtype=bool)
-    terminal_ = writable(mdp.terminal, np.bool_) if mdp is not None else None
-    env_seed: int | None = int(gen.integers(2**31 - 1))
-    steps = truncated = 0
-    with progress_bar(progress, episodes, name) as advance:
-        for k0, k1 in rec.chunks():
-            for k in range(k0, k1):
-                options = None
-                if behaviour.exploring_starts:
-                    assert terminal_ is not None and mdp is not None
-                    options = {"state": mdp.states[exploring_start_state(terminal_, rng)]}
-                obs, _ = env.reset(seed=env_seed, options=options)
-                env_seed = None
-                eps = schedule_value(behaviour.epsilon, k + 1.0)
-                T, cut = 0, False
-                while True:  # one episode: S_0, A_0, R_1, ..., S_T
-                    s = index(obs)
-                    if s >= len(seen):
-                        run = _grow(run, s + 1)
-                        seen = _grow_flat(seen, run.q.shape[0])
-                        mask = grow_rows(mask, run.q.shape[0], fill=True)
-                    seen[s] = True
-                    run.buf.s[T] = s
-                    if max_steps <= T:
-                        cut = True
-                        break
-                    if pi_table is not None:
-                        pi_row = pi_table[s]
-                    elif behaviour.kind == FIXED_POLICY:
-                        pi_row = _policy_row(policy, obs, A)
-                    else:
-                        pi_row = no_row
-                    e = behaviour_epsilon(by_state, eps_params, eps, run.tables.nv[s])
-                    explore = behaviour.exploring_starts and T == 0
-                    a, b = choose_action(kind, explore, pi_row, run.q[s], mask[s], e, rng)
-                    obs, r, term, trunc, _ = env.step(a)
-                    run.buf.a[T], run.buf.r[T], run.buf.b[T] = a, float(r), b
-                    T += 1
-                    if term or trunc:
-                        cut = bool(trunc) and not term
-                        break
-                steps += T
-                run.lengths[k] = T
-                run.returns[k] = episode_return(run.buf.r, T, settings.gamma)
-                if cut:
-                    truncated += 1
-                    continue
-                mc_episode_update(settings, run.tables, run.buf, run.scratch, mask, T, k + 1)
-            n = len(index)
-            # an env over its own FiniteMDP can reach every state: score them all, as the
-            # compiled path does; with an outside model score only the states seen so far
-            rec.record(run.q[:n], run.tables.v[:n], None if own_model else seen[:n])
-            advance(k1 - k0)
-    return run, steps, truncated, index.labels
+        target = st.target
+        tgt = writable(target.probs.ravel(), np.float64) if target is not None else np.zeros(S0 * A)
+        self.settings = MCSettings(
+            gamma, st.kind, st.first_visit, st.alpha.params, st.weighted, tgt
+        )
+        self.no_row = np.zeros(A)
+        self.seen = np.zeros(S0, dtype=bool)
+        self.terminal = writable(mdp.terminal, np.bool_) if mdp is not None else None
+        self.env_seed: int | None = int(gen.integers(2**31 - 1))
+
+    def __call__(self, k0: int, k1: int) -> int:
+        st, index, rng, env = self.st, self.index, self.rng, self.env
+        A = self.no_row.shape[0]
+        steps = 0
+        for k in range(k0, k1):
+            options = None
+            if st.exploring_starts:
+                assert self.terminal is not None and self.mdp is not None
+                options = {"state": self.mdp.states[exploring_start_state(self.terminal, rng)]}
+            obs, _ = env.reset(seed=self.env_seed, options=options)
+            self.env_seed = None
+            eps = schedule_value(st.epsilon.params, k + 1.0)
+            T, cut = 0, False
+            run = self.run
+            while True:  # one episode: S_0, A_0, R_1, ..., S_T
+                s = index(obs)
+                if s >= len(self.seen):
+                    run = self.run = _grow(run, s + 1)
+                    self.seen = _grow_flat(self.seen, run.q.shape[0])
+                    self.mask = grow_rows(self.mask, run.q.shape[0], fill=True)
+                self.seen[s] = True
+                run.buf.s[T] = s
+                if self.max_steps <= T:
+                    cut = True
+                    break
+                if self.pi_table is not None:
+                    pi_row = self.pi_table[s]
+                elif st.policy_kind == FIXED_POLICY:
+                    pi_row = _policy_row(st.policy, obs, A)
+                else:
+                    pi_row = self.no_row
+                e = behaviour_epsilon(st.eps_by_state, st.epsilon.params, eps, run.tables.nv[s])
+                explore = st.exploring_starts and T == 0
+                a, b = choose_action(
+                    st.policy_kind, explore, pi_row, run.q[s], self.mask[s], e, rng
+                )
+                obs, r, term, trunc, _ = env.step(a)
+                run.buf.a[T], run.buf.r[T], run.buf.b[T] = a, float(r), b
+                T += 1
+                if term or trunc:
+                    cut = bool(trunc) and not term
+                    break
+            steps += T
+            run.lengths[k] = T
+            run.returns[k] = episode_return(run.buf.r, T, self.settings.gamma)
+            if cut:
+                self.truncated += 1
+                continue
+            mc_episode_update(self.settings, run.tables, run.buf, run.scratch, self.mask, T, k + 1)
+        return steps
+
+    def estimate(self) -> tuple[Any, Any, Any]:
+        # an env over its own FiniteMDP can reach every state: score them all, as the
+        # compiled path does; with an outside model score only the states seen so far
+        n = len(self.index)
+        return self.run.q[:n], self.run.tables.v[:n], None if self.own_model else self.seen[:n]
+
+    def outcome(self) -> dict[str, Any]:
+        return _outcome(self.run, self.index.labels, self.mdp, self.truncated, self.keeps_v)
 
 
 def _policy_row(policy: Any, obs: Any, A: int) -> NDArray[np.float64]:
@@ -648,7 +637,7 @@ def _policy_row(policy: Any, obs: Any, A: int) -> NDArray[np.float64]:
     return row
 
 
-# =============================================================================== learners
+# =============================================================================== the entries
 def _fixed_policy(
     problem: Any, policy: Any, model: FiniteMDP | None, what: str
 ) -> tuple[Any, Policy | None]:
@@ -684,6 +673,103 @@ def _fixed_policy(
     )
 
 
+def _setup_prediction(args: dict[str, Any]) -> _Setup:
+    """mc-prediction: first- or every-visit averages of the returns under a fixed policy."""
+    policy, truth_policy = _fixed_policy(
+        args["problem"], args["policy"], args["model"], "mc_prediction"
+    )
+    a = as_schedule(args["alpha"], Schedule.inverse(), "alpha").check_range(0.0, 1.0, "alpha")
+    first_visit = bool(args["first_visit"])
+    return _Setup(
+        AVERAGE, policy, FIXED_POLICY, Schedule.constant(0.0), False, False, first_visit, a,
+        False, None, "prediction", truth_policy, args["error_on"],
+        {"first_visit": first_visit, "alpha": str(a)},
+    )  # fmt: skip
+
+
+def _setup_control(args: dict[str, Any]) -> _Setup:
+    """mc-control: exploring starts, or epsilon-greedy with a GLIE schedule."""
+    epsilon, epsilon_by, exploring = args["epsilon"], args["epsilon_by"], args["exploring_starts"]
+    if epsilon_by is None:
+        epsilon_by = "state" if epsilon is None else "episode"
+    if epsilon_by not in ("episode", "state"):
+        raise InvalidArgumentError(f"epsilon_by must be 'episode' or 'state'; got {epsilon_by!r}")
+    if exploring and epsilon is not None:
+        raise InvalidArgumentError("exploring starts act greedily; do not give epsilon with them")
+    eps = as_schedule(epsilon, Schedule.inverse(power=0.5), "epsilon")
+    if epsilon_by == "episode":
+        eps.check_range(0.0, 1.0, "epsilon")
+    elif min(eps.a, eps.c) < 0:
+        raise InvalidArgumentError(f"epsilon must be >= 0; schedule {eps} is negative")
+    if exploring:
+        eps = Schedule.constant(0.0)
+    a = as_schedule(args["alpha"], Schedule.inverse(), "alpha").check_range(0.0, 1.0, "alpha")
+    first_visit = bool(args["first_visit"])
+    params = {
+        "epsilon_by": epsilon_by,
+        "exploring_starts": bool(exploring),
+        "epsilon": str(eps),
+        "alpha": str(a),
+        "first_visit": first_visit,
+    }
+    return _Setup(
+        AVERAGE, None, EPSILON_GREEDY, eps, epsilon_by == "state", bool(exploring),
+        first_visit, a, False, None, "control", None, "q", params,
+    )  # fmt: skip
+
+
+def _setup_off_policy(args: dict[str, Any]) -> _Setup:
+    """mc-off-policy: importance sampling, prediction of a target or greedy control."""
+    from policylab.mdp.policy import Policy
+
+    target, epsilon = args["target"], args["epsilon"]
+    if target is not None and not isinstance(target, Policy):
+        raise InvalidPolicyError(
+            f"target must be a policylab Policy or None; got {type(target).__name__}"
+        )
+    if target is not None and epsilon is not None:
+        raise InvalidArgumentError(
+            "epsilon (an epsilon-greedy behaviour) is for control; give behavior= instead"
+        )
+    policy_kind = FIXED_POLICY
+    eps = Schedule.constant(0.0)
+    policy: Any = None
+    if epsilon is not None:
+        policy_kind = EPSILON_GREEDY
+        eps = as_schedule(epsilon, Schedule.inverse(), "epsilon").check_range(0.0, 1.0, "epsilon")
+        if eps.kind == CONSTANT and eps.a == 0.0:
+            raise InvalidArgumentError("an epsilon-greedy behaviour needs epsilon > 0 (coverage)")
+    else:
+        what = "mc_off_policy behavior"
+        policy, _ = _fixed_policy(args["problem"], args["behavior"], args["model"], what)
+        if target is not None and isinstance(policy, Policy):
+            _check_coverage(target, policy)
+        elif target is None and isinstance(policy, Policy):
+            _check_soft(policy)
+    weighted, first_visit = bool(args["weighted"]), bool(args["first_visit"])
+    params = {
+        "weighted": weighted,
+        "first_visit": first_visit,
+        "target": "greedy" if target is None else "given",
+        "behavior": f"epsilon-greedy {eps}" if epsilon is not None else "fixed",
+    }
+    return _Setup(
+        IS_PREDICTION if target is not None else IS_CONTROL, policy, policy_kind, eps, False,
+        False, first_visit, Schedule.inverse(), weighted, target,
+        "prediction" if target is not None else "control", target,
+        args["error_on"] if target is not None else "q", params,
+    )  # fmt: skip
+
+
+MC_ENTRIES = (
+    MCEntry("mc-prediction", _setup_prediction),
+    MCEntry("mc-control", _setup_control),
+    MCEntry("mc-off-policy", _setup_off_policy),
+)
+add_entries(MC_ENTRIES)
+
+
+# =============================================================================== learners
 def mc_prediction(
     problem: FiniteMDP | Any,
     policy: Policy | Callable[[Any], Any] | None = None,
@@ -691,22 +777,18 @@ def mc_prediction(
     episodes: int = 10_000,
     first_visit: bool = True,
     alpha: Schedule | float | str | None = None,
-    gamma: float | None = None,
-    seed: Seed = None,
-    checkpoints: int = 50,
     error_on: Literal["v", "q"] = "q",
-    max_steps: int = 10_000,
     start: Hashable | None = None,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
     score: bool = True,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """Monte Carlo prediction of v_pi and q_pi (first-visit or every-visit).
 
     For each episode S_0, A_0, R_1, ..., S_T generated by pi, backwards from t = T - 1:
     G_t = R_{t+1} + gamma G_{t+1}; N(S_t, A_t) += 1; Q(S_t, A_t) += (G_t - Q) / N (and
     the same for V(S_t)): Q and V are the running means of the returns after each
-    (first) visit. ``result.policy`` is the greedy policy of the Q-table.
+    (first) visit. ``result.policy`` is the greedy policy of the Q-table. Episodes
+    truncated at ``max_steps`` are counted (``result.truncated``), not averaged.
 
     Args:
         problem: A FiniteMDP (compiled path) or a Gymnasium env / id (Python loop).
@@ -717,50 +799,19 @@ def mc_prediction(
         first_visit: First-visit MC (True) or every-visit MC (False).
         alpha: Step size: None for the sample average 1/N, a constant (constant-alpha
             MC) or a :class:`Schedule` of the visit count.
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        checkpoints: About how many points of the error curve (log-spaced).
         error_on: Score Q against q_pi (``"q"``) or V against v_pi (``"v"``).
-        max_steps: Step limit of an episode; truncated episodes are not averaged.
         start: Optional start state label (FiniteMDP only).
-        model: The exact FiniteMDP behind an env (for the error curve), e.g.
-            ``pl.problems.blackjack()`` for Gymnasium's Blackjack-v1.
-        progress: Show a progress bar.
         score: Hold the estimate against the exact answer where the model is known
             (False skips the exact solve, for many short runs).
+        **options: The options every tabular learner shares
+            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``,
+            ``checkpoints``, ``max_steps``, ``model`` (for an env, e.g.
+            ``pl.problems.blackjack()`` for Gymnasium's Blackjack-v1), ``progress``.
 
     Returns:
         The :class:`LearnResult` (error against v_pi / q_pi where the model is known).
     """
-    gen_policy, truth_policy = _fixed_policy(problem, policy, model, "mc_prediction")
-    a = as_schedule(alpha, Schedule.inverse(), "alpha").check_range(0.0, 1.0, "alpha")
-    return _run(
-        "mc-prediction",
-        problem,
-        kind=AVERAGE,
-        episodes=episodes,
-        seed=seed,
-        gamma=gamma,
-        policy=gen_policy,
-        policy_kind=FIXED_POLICY,
-        epsilon=Schedule.constant(0.0),
-        exploring_starts=False,
-        eps_by_state=False,
-        first_visit=bool(first_visit),
-        alpha=a,
-        weighted=False,
-        target=None,
-        truth_kind="prediction",
-        truth_policy=truth_policy,
-        error_on=error_on,
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        start=start,
-        progress=progress,
-        model=model,
-        score=score,
-        params={"first_visit": bool(first_visit), "alpha": str(a)},
-    )
+    return learn_entry("mc-prediction", locals())
 
 
 def mc_control(
@@ -772,14 +823,9 @@ def mc_control(
     epsilon_by: Literal["episode", "state"] | None = None,
     alpha: Schedule | float | str | None = None,
     first_visit: bool = True,
-    gamma: float | None = None,
-    seed: Seed = None,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
     start: Hashable | None = None,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
     score: bool = True,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """On-policy Monte Carlo control: exploring starts or epsilon-greedy (GLIE).
 
@@ -792,6 +838,11 @@ def mc_control(
     keep exploring while common ones turn greedy (on Blackjack, 1M episodes: 95 % of
     the states optimal, against 70 % for the textbook epsilon_k = 1/k of the episode
     number, which stops exploring after a few hundred episodes).
+
+    Episodes truncated at ``max_steps`` are not used. On a deterministic task a greedy
+    policy (exploring starts, small epsilon) can loop for ever: such episodes run to
+    the limit and teach nothing (Monte Carlo needs episodes that end; Sutton & Barto
+    section 5.3), so keep the limit small there and check ``result.truncated``.
 
     Args:
         problem: A FiniteMDP (compiled path) or a Gymnasium env / id (Python loop).
@@ -810,70 +861,17 @@ def mc_control(
         alpha: Step size: None for sample averages 1/N, a constant for
             constant-alpha MC, or a :class:`Schedule` of the visit count.
         first_visit: First-visit (True) or every-visit (False) updates.
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        checkpoints: About how many points of the error curve (log-spaced).
-        max_steps: Step limit of an episode; truncated episodes are not used. On a
-            deterministic task a greedy policy (exploring starts, small epsilon) can
-            loop for ever: such episodes run to the limit and teach nothing (Monte
-            Carlo needs episodes that end; Sutton & Barto section 5.3), so keep the
-            limit small there and check ``result.truncated``.
         start: Optional start state label (FiniteMDP only, without exploring starts).
-        model: The exact FiniteMDP behind an env (for the error curve).
-        progress: Show a progress bar.
         score: Hold the estimate against the exact answer where the model is known
             (False skips the exact solve, for many short runs).
+        **options: The options every tabular learner shares
+            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``,
+            ``checkpoints``, ``max_steps``, ``model``, ``progress``.
 
     Returns:
         The :class:`LearnResult`; its error is measured against q*.
     """
-    if epsilon_by is None:
-        epsilon_by = "state" if epsilon is None else "episode"
-    if epsilon_by not in ("episode", "state"):
-        raise InvalidArgumentError(f"epsilon_by must be 'episode' or 'state'; got {epsilon_by!r}")
-    if exploring_starts and epsilon is not None:
-        raise InvalidArgumentError("exploring starts act greedily; do not give epsilon with them")
-    eps = as_schedule(epsilon, Schedule.inverse(power=0.5), "epsilon")
-    if epsilon_by == "episode":
-        eps.check_range(0.0, 1.0, "epsilon")
-    elif min(eps.a, eps.c) < 0:
-        raise InvalidArgumentError(f"epsilon must be >= 0; schedule {eps} is negative")
-    if exploring_starts:
-        eps = Schedule.constant(0.0)
-    a = as_schedule(alpha, Schedule.inverse(), "alpha").check_range(0.0, 1.0, "alpha")
-    return _run(
-        "mc-control",
-        problem,
-        kind=AVERAGE,
-        episodes=episodes,
-        seed=seed,
-        gamma=gamma,
-        policy=None,
-        policy_kind=EPSILON_GREEDY,
-        epsilon=eps,
-        exploring_starts=bool(exploring_starts),
-        eps_by_state=epsilon_by == "state",
-        first_visit=bool(first_visit),
-        alpha=a,
-        weighted=False,
-        target=None,
-        truth_kind="control",
-        truth_policy=None,
-        error_on="q",
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        start=start,
-        progress=progress,
-        model=model,
-        score=score,
-        params={
-            "epsilon_by": epsilon_by,
-            "exploring_starts": bool(exploring_starts),
-            "epsilon": str(eps),
-            "alpha": str(a),
-            "first_visit": bool(first_visit),
-        },
-    )
+    return learn_entry("mc-control", locals())
 
 
 def mc_off_policy(
@@ -885,15 +883,10 @@ def mc_off_policy(
     weighted: bool = False,
     episodes: int = 100_000,
     first_visit: bool = False,
-    gamma: float | None = None,
-    seed: Seed = None,
-    checkpoints: int = 50,
     error_on: Literal["v", "q"] = "q",
-    max_steps: int = 10_000,
     start: Hashable | None = None,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
     score: bool = True,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """Off-policy Monte Carlo by importance sampling, ordinary or weighted.
 
@@ -901,6 +894,7 @@ def mc_off_policy(
     sampling ratio rho_{t:T-1} = prod_k pi(A_k | S_k) / b(A_k | S_k). Ordinary IS
     averages rho G over all visits (unbiased, possibly huge variance); weighted IS
     divides by the sum of the ratios instead (biased, consistent, low variance).
+    Episodes truncated at ``max_steps`` are not used.
 
     * Prediction (``target`` given): estimates v_pi and q_pi of the target policy.
     * Control (``target=None``): the target is the greedy policy of Q, improved as Q
@@ -916,76 +910,18 @@ def mc_off_policy(
         weighted: Weighted (True) or ordinary (False) importance sampling.
         episodes: Number of episodes.
         first_visit: First-visit (True) or every-visit (False, the book's choice).
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        checkpoints: About how many points of the error curve (log-spaced).
         error_on: For prediction: score Q (``"q"``) or V (``"v"``).
-        max_steps: Step limit of an episode; truncated episodes are not used.
         start: Optional start state label (FiniteMDP only).
-        model: The exact FiniteMDP behind an env (for the error curve).
-        progress: Show a progress bar.
         score: Hold the estimate against the exact answer where the model is known
             (False skips the exact solve, for many short runs).
+        **options: The options every tabular learner shares
+            (:class:`~policylab.tabular.LearnOptions`): ``gamma``, ``seed``,
+            ``checkpoints``, ``max_steps``, ``model``, ``progress``.
 
     Returns:
         The :class:`LearnResult`.
     """
-    from policylab.mdp.policy import Policy
-
-    if target is not None and not isinstance(target, Policy):
-        raise InvalidPolicyError(
-            f"target must be a policylab Policy or None; got {type(target).__name__}"
-        )
-    if target is not None and epsilon is not None:
-        raise InvalidArgumentError(
-            "epsilon (an epsilon-greedy behaviour) is for control; give behavior= instead"
-        )
-    policy_kind = FIXED_POLICY
-    eps = Schedule.constant(0.0)
-    gen_policy: Any = None
-    if epsilon is not None:
-        policy_kind = EPSILON_GREEDY
-        eps = as_schedule(epsilon, Schedule.inverse(), "epsilon").check_range(0.0, 1.0, "epsilon")
-        if eps.kind == CONSTANT and eps.a == 0.0:
-            raise InvalidArgumentError("an epsilon-greedy behaviour needs epsilon > 0 (coverage)")
-    else:
-        gen_policy, _ = _fixed_policy(problem, behavior, model, "mc_off_policy behavior")
-        if target is not None and isinstance(gen_policy, Policy):
-            _check_coverage(target, gen_policy)
-        elif target is None and isinstance(gen_policy, Policy):
-            _check_soft(gen_policy)
-    return _run(
-        "mc-off-policy",
-        problem,
-        kind=IS_PREDICTION if target is not None else IS_CONTROL,
-        episodes=episodes,
-        seed=seed,
-        gamma=gamma,
-        policy=gen_policy,
-        policy_kind=policy_kind,
-        epsilon=eps,
-        exploring_starts=False,
-        eps_by_state=False,
-        first_visit=bool(first_visit),
-        alpha=Schedule.inverse(),
-        weighted=bool(weighted),
-        target=target,
-        truth_kind="prediction" if target is not None else "control",
-        truth_policy=target,
-        error_on=error_on if target is not None else "q",
-        checkpoints=checkpoints,
-        max_steps=max_steps,
-        start=start,
-        progress=progress,
-        model=model,
-        score=score,
-        params={
-            "weighted": bool(weighted),
-            "first_visit": bool(first_visit),
-            "target": "greedy" if target is None else "given",
-            "behavior": f"epsilon-greedy {eps}" if epsilon is not None else "fixed",
-        },
-    )
+    return learn_entry("mc-off-policy", locals())
 
 
 def _check_coverage(target: Policy, behavior: Policy) -> None:

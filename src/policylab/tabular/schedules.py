@@ -57,19 +57,19 @@ _KIND_NAMES = {
 }
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def schedule_value(params: NDArray[np.float64], n: float) -> float:  # pragma: no cover - compiled
     """The value of the schedule ``params = [kind, a, b, c]`` at count ``n >= 1``.
 
     constant: a; inverse: max(a / n**b, c); exponential: max(a * b**(n-1), c);
     linear: a + (c - a) * min(1, (n - 1) / b).
     """
-    kind = int(params[0])
+    kind = params[0]  # compared as a float: no conversion in the step loops
     a, b, c = params[1], params[2], params[3]
-    if n < 1.0:
-        n = 1.0
     if kind == CONSTANT:
         return float(a)
+    if n < 1.0:
+        n = 1.0
     if kind == INVERSE:
         return float(max(a / n**b, c))
     if kind == EXPONENTIAL:

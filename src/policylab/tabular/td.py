@@ -15,6 +15,19 @@ as plain Python, see :mod:`policylab.tabular.td_kernels`), and returns a
 v_pi (prediction) or q* (control) where the model is known. :func:`seed_study` runs
 one learner for many seeds at once (the studies of Figures 6.2-6.5).
 
+Every TD learner's options mean the same: ``alpha`` (default 0.1) is a number, a
+:class:`~policylab.tabular.Schedule` of each entry's update count or a schedule string
+(``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``); ``epsilon`` (control,
+default 0.1) the exploration rate of the epsilon-greedy behaviour, a number or a
+schedule of the episode number (``"linear:1,0.01,5000"``); ``init`` (default 0) the
+initial value of every non-terminal entry of the table (V(s) = 0.5 in Example 6.2);
+``policy`` (prediction) the policy evaluated, a :class:`~policylab.Policy` or an (S, A)
+array. Prediction learns V only: its result's ``q`` is the one-step lookahead of V
+through the model (zeros without one), its ``policy`` the policy evaluated, and its
+error that of V against the exact v_pi. The shared options (``gamma``, ``seed``,
+``checkpoints``, ``max_steps``, ``model``, ``progress``) are
+:class:`~policylab.tabular.LearnOptions`.
+
 Example::
 
     import policylab as pl
@@ -25,12 +38,9 @@ Example::
 
 from __future__ import annotations
 
-import contextlib
-import inspect
-import time
-from collections.abc import Hashable, Iterator, Sequence
+from collections.abc import Hashable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, Unpack
 
 import numpy as np
 
@@ -38,24 +48,29 @@ from policylab.exceptions import InvalidArgumentError, InvalidPolicyError
 from policylab.tabular import td_kernels as tdk
 from policylab.tabular.common import (
     GymStepper,
-    Recorder,
     StateIndex,
     as_env,
     check_count,
-    check_episodes,
     check_fraction,
     check_gamma,
-    checkpoint_episodes,
     env_name,
     is_finite_mdp,
-    progress_bar,
 )
-from policylab.tabular.kernels import KernelMDP, rng_states, writable
-from policylab.tabular.registry import Option, list_algorithms, register_algorithm
+from policylab.tabular.driver import (
+    LearnOptions,
+    Many,
+    Plan,
+    SeedRuns,
+    add_entries,
+    check_shared,
+    learn_entry,
+    seed_study,
+)
+from policylab.tabular.kernels import KernelMDP, writable
+from policylab.tabular.registry import Option, register_algorithm
 from policylab.tabular.result import LearnResult
 from policylab.tabular.schedules import Schedule, as_schedule
 from policylab.tabular.truth import GroundTruth, greedy_probs
-from policylab.validation import as_generator, check_seed, did_you_mean, normalize_name
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -311,6 +326,7 @@ class _Run:
     settings: tdk.Settings
     tables: tdk.Tables
     out: tdk.Episodes
+    alpha: str = ""  # the step size as written, for the divergence warning
 
     @classmethod
     def start(
@@ -347,6 +363,7 @@ class _Run:
             algo.settings(gamma, alpha, epsilon, max_steps),
             _tables(algo, P, pi, init),
             _episodes(episodes),
+            str(alpha),
         )
 
     def __call__(self, k0: int, k1: int) -> int:
@@ -356,6 +373,33 @@ class _Run:
         if self.env is None:
             return int(tdk.run_kernel(family, *args))
         return int(tdk.KERNELS[family].py_func(*args))  # the same source, as Python
+
+    def estimate(self) -> tuple[Any, Any, None]:
+        """What the error is measured on: Q (control) and V."""
+        q, v = self.values()
+        return (q if self.algo.control else None), v, None
+
+    def outcome(self) -> dict[str, Any]:
+        """The run's :class:`LearnResult` fields (with a warning if it diverged)."""
+        P, algo, out = self.P, self.algo, self.out
+        _warn_if_diverged(algo, P, self.gamma, self.max_steps, self.alpha, self.w, self.q2)
+        counts = self.tables.counts
+        counts = counts if algo.control else np.repeat(counts, P.n_actions, axis=1) * P.mask
+        q, v = self.values()
+        return {
+            "states": P.states,
+            "actions": P.actions,
+            "q": q,
+            "v": v,
+            "policy": greedy_probs(q, P.mask) if algo.control else self.tables.pi.copy(),
+            "terminal": P.terminal,
+            "action_mask": P.mask,
+            "counts": counts.astype(np.float64),
+            "episode_returns": out.returns,
+            "truncated": int(np.sum(out.lengths >= self.max_steps)),
+            "episode_lengths": out.lengths,
+            "first_actions": out.first_actions if algo.family == "one_step" else None,
+        }
 
     @property
     def w(self) -> NDArray[np.float64]:
@@ -367,173 +411,134 @@ class _Run:
         """Q2 of Double Q-learning (else the learned table itself)."""
         return self.tables.q2  # type: ignore[no-any-return]
 
-    @property
-    def q(self) -> NDArray[np.float64]:
-        """Q (S, A): the control table (Q1 + Q2 averaged for Double Q).
+    def values(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(Q, V) of the run's tables (see :func:`_values`)."""
+        return _values(self.algo, self.P, self.gamma, self.w, self.q2)
 
-        Prediction learns V only; its Q is the one-step lookahead q(s, a) = sum p(s', r |
-        s, a) [r + gamma V(s')] where the model is known, else zeros.
-        """
-        if not self.algo.control:
-            if self.P.mdp is None or not np.all(np.isfinite(self.v)):
-                return np.zeros((self.P.n_states, self.P.n_actions))
-            from policylab.planning import action_values
 
-            q = np.asarray(action_values(self.P.mdp.with_gamma(self.gamma), self.v))
-            return np.where(self.P.mask, q, 0.0)
-        q = (self.w + self.q2) / 2.0 if self.algo.rule == tdk.DOUBLE_Q else self.w.copy()
-        return np.where(self.P.mask, q, 0.0)
+def _values(
+    algo: _Algo, P: _Problem, gamma: float, w: NDArray[np.float64], q2: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Q (S, A) and V (S,) of learned tables, or of R runs' tables at once (leading axis).
 
-    @property
-    def v(self) -> NDArray[np.float64]:
-        """V (S,): the learned V (prediction) or max_a Q(s, a) over A(s) (control)."""
-        if not self.algo.control:
-            v = self.w[:, 0].copy()
-        else:
-            qm = np.where(self.P.mask, self.q, -np.inf)
-            v = np.where(self.P.mask.any(axis=1), qm.max(axis=1), 0.0)
-        v[self.P.terminal] = 0.0
-        return v
+    Control: Q the table (Q1 + Q2 averaged for Double Q) on A(s), V = max over A(s) of
+    Q. Prediction learns V only; its Q is the one-step lookahead q(s, a) = sum p(s', r |
+    s, a) [r + gamma V(s')] where the model is known, else zeros. V is 0 on terminals.
+    """
+    if algo.control:
+        q = np.where(P.mask, (w + q2) / 2.0 if algo.rule == tdk.DOUBLE_Q else w, 0.0)
+        v = np.where(P.mask.any(axis=1), np.where(P.mask, q, -np.inf).max(axis=-1), 0.0)
+        v[..., P.terminal] = 0.0
+        return q, v
+    v = w[..., 0].copy()
+    v[..., P.terminal] = 0.0
+    if v.ndim == 2:
+        return np.stack([_lookahead(P, gamma, row) for row in v]), v
+    return _lookahead(P, gamma, v), v
+
+
+def _lookahead(P: _Problem, gamma: float, v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """q(s, a) = sum p(s', r | s, a) [r + gamma V(s')] on A(s) (zeros without a model)."""
+    if P.mdp is None or not np.all(np.isfinite(v)):
+        return np.zeros((P.n_states, P.n_actions))
+    from policylab.planning import action_values
+
+    q = np.asarray(action_values(P.mdp.with_gamma(gamma), v))
+    return np.where(P.mask, q, 0.0)
 
 
 def _prepare(
-    algo: _Algo,
-    problem: Any,
-    policy: Any,
-    *,
-    model: FiniteMDP | None,
-    episodes: int,
-    gamma: float | None,
-    alpha: Schedule | float | str | None,
-    epsilon: Schedule | float | str | None,
-    max_steps: int,
-) -> tuple[_Problem, NDArray[np.float64], Policy | None, float, Schedule, Schedule, int, int]:
-    """The checked arguments of :func:`_learn`."""
-    episodes = check_episodes(episodes)
-    max_steps = check_episodes(max_steps, "max_steps")
-    P = _resolve(problem, model)
-    g = check_gamma(gamma, P.mdp.gamma if P.mdp is not None else 1.0)
+    algo: _Algo, args: dict[str, Any]
+) -> tuple[_Problem, NDArray[np.float64], Policy | None, float, Schedule, Schedule]:
+    """The checked problem, policy table, truth policy, gamma and schedules of a call."""
+    P = _resolve(args["problem"], args["model"])
+    g = check_gamma(args["gamma"], P.mdp.gamma if P.mdp is not None else 1.0)
     default_alpha = _DEFAULT_ALPHA_CONTROL if algo.control else _DEFAULT_ALPHA_PREDICTION
-    a = as_schedule(alpha, Schedule.constant(default_alpha), "alpha").check_range(0.0, 1.0, "alpha")
-    e = as_schedule(epsilon, Schedule.constant(_DEFAULT_EPSILON), "epsilon").check_range(
-        0.0, 1.0, "epsilon"
-    )
+    a = as_schedule(args["alpha"], Schedule.constant(default_alpha), "alpha")
+    a.check_range(0.0, 1.0, "alpha")
+    e = as_schedule(args.get("epsilon"), Schedule.constant(_DEFAULT_EPSILON), "epsilon")
+    e.check_range(0.0, 1.0, "epsilon")
+    policy = args.get("policy")
     if algo.control:
         if policy is not None:
             raise InvalidArgumentError(f"{algo.name} is a control method; it takes no policy")
         pi, truth_policy = np.zeros((P.n_states, P.n_actions)), None
     else:
         pi, truth_policy = _policy_table(P, policy)
-    return P, pi, truth_policy, g, a, e, episodes, max_steps
+    return P, pi, truth_policy, g, a, e
 
 
-def _learn(
-    algo: _Algo,
-    problem: Any,
-    policy: Any = None,
-    *,
-    episodes: int,
-    seed: Seed,
-    gamma: float | None,
-    alpha: Schedule | float | str | None,
-    epsilon: Schedule | float | str | None = None,
-    init: float = 0.0,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
-    params: dict[str, Any] | None = None,
-) -> LearnResult:
-    """The body every TD learner shares: checks, ground truth, chunks, result."""
-    P, pi, truth_policy, g, a, e, episodes, max_steps = _prepare(
-        algo,
-        problem,
-        policy,
-        model=model,
-        episodes=episodes,
-        gamma=gamma,
-        alpha=alpha,
-        epsilon=epsilon,
-        max_steps=max_steps,
-    )
-    truth: GroundTruth | None = None
-    if P.mdp is not None:
+def _plan(algo: _Algo, args: dict[str, Any], params: dict[str, Any]) -> Plan:
+    """The :class:`~policylab.tabular.driver.Plan` of a TD learner call."""
+    episodes, max_steps, checkpoints = check_shared(args)
+    P, pi, truth_policy, g, a, e = _prepare(algo, args)
+    init = float(args["init"])
+    mdp = P.mdp
+
+    def truth() -> GroundTruth | None:
+        if mdp is None:
+            return None
         if algo.control:
-            truth = GroundTruth.control(P.mdp, on="q", gamma=g)
-        elif truth_policy is not None:
-            truth = GroundTruth.prediction(P.mdp, truth_policy, on="v", gamma=g)
-    rec = Recorder(truth, checkpoint_episodes(episodes, checkpoints))
-    gen = as_generator(seed)
-    rng = rng_states(gen, 1)[0]
-    env_seed = int(gen.integers(2**31 - 1))
-    run = _Run.start(
-        algo,
-        P,
-        pi,
-        gamma=g,
-        alpha=a,
-        epsilon=e,
-        max_steps=max_steps,
-        rng=rng,
-        env_seed=env_seed,
-        episodes=episodes,
-        init=init,
-    )
-    steps = 0
-    t0 = time.perf_counter()
-    with progress_bar(progress, episodes, algo.name) as advance:
-        for k0, k1 in rec.chunks():
-            steps += run(k0, k1)
-            rec.record(run.q if algo.control else None, run.v)
-            advance(k1 - k0)
-    seconds = time.perf_counter() - t0
-    _warn_if_diverged(algo, run, a)
-    counts = run.tables.counts
-    counts = counts if algo.control else np.repeat(counts, P.n_actions, axis=1) * P.mask
-    pol = greedy_probs(run.q, P.mask) if algo.control else pi.copy()
-    return LearnResult(
+            return GroundTruth.control(mdp, on="q", gamma=g)
+        if truth_policy is None:
+            return None
+        return GroundTruth.prediction(mdp, truth_policy, on="v", gamma=g)
+
+    def start(rng: NDArray[np.uint64], gen: np.random.Generator) -> _Run:
+        return _Run.start(
+            algo, P, pi, gamma=g, alpha=a, epsilon=e, max_steps=max_steps, rng=rng,
+            env_seed=int(gen.integers(2**31 - 1)), episodes=episodes, init=init,
+        )  # fmt: skip
+
+    def many(rngs: NDArray[np.uint64]) -> Many:
+        assert mdp is not None  # batched on a FiniteMDP only
+        R = rngs.shape[0]
+        tables = _tables(algo, P, pi, init, n_runs=R)
+        out = _episodes(episodes, R)
+        model = tdk.model_tuple(KernelMDP.of(mdp, g), P.mask)
+        settings = algo.settings(g, a, e, max_steps)
+        family = _FAMILIES[algo.family]
+        steps = tdk.many_runs(family, model, tables, settings, out, rngs, episodes)
+        _warn_if_diverged(algo, P, g, max_steps, str(a), tables.w, tables.q2)
+        q, v = _values(algo, P, g, tables.w, tables.q2)
+        first = out.first_actions if algo.family == "one_step" else None
+        return Many(out.returns, out.lengths, q, v, first, int(steps.sum()))
+
+    return Plan(
         algorithm=algo.name,
         problem=P.name,
-        states=P.states,
-        actions=P.actions,
-        q=run.q,
-        v=run.v,
-        policy=pol,
-        terminal=P.terminal,
-        action_mask=P.mask,
-        counts=counts.astype(np.float64),
+        mdp=mdp,
         episodes=episodes,
-        steps=int(steps),
-        seconds=seconds,
-        episode_returns=run.out.returns,
-        truncated=int(np.sum(run.out.lengths >= max_steps)),
-        episode_lengths=run.out.lengths,
-        first_actions=run.out.first_actions if algo.family == "one_step" else None,
-        params={
-            **(params or {}),
-            "alpha": str(a),
-            **({"epsilon": str(e)} if algo.control else {}),
-            "gamma": g,
-            "seed": seed if isinstance(seed, int | np.integer) else None,
-            "path": "compiled" if P.env is None else "gymnasium",
-        },
-        mdp=P.mdp,
-        **rec.arrays(),
+        checkpoints=checkpoints,
+        gamma=g,
+        params={**params, "alpha": str(a), **({"epsilon": str(e)} if algo.control else {})},
+        truth=truth,
+        start=start,
+        many=many if P.env is None else None,
+        compiled=P.env is None,
     )
 
 
-def _warn_if_diverged(algo: _Algo, run: _Run, alpha: Schedule) -> None:
-    """Warn when the table diverged.
+def _warn_if_diverged(
+    algo: _Algo,
+    P: _Problem,
+    gamma: float,
+    max_steps: int,
+    alpha: str,
+    w: NDArray[np.float64],
+    q2: NDArray[np.float64],
+) -> None:
+    """Warn when the tables (of one run or of many) diverged.
 
     Diverged: non-finite values, or (with a model) values beyond ten times the largest
     possible return, max|r| / (1 - gamma) (max|r| * max_steps for gamma = 1).
     """
-    tables = np.concatenate([run.w.ravel(), run.q2.ravel()])
-    diverged = not np.all(np.isfinite(tables))
-    if not diverged and run.P.mdp is not None and run.P.mdp.n_outcomes:
-        r_max = float(np.abs(run.P.mdp.rewards).max())
-        horizon = 1.0 / (1.0 - run.gamma) if run.gamma < 1.0 else float(run.max_steps)
-        diverged = bool(np.abs(tables).max() > 10.0 * max(r_max, 1e-12) * horizon)
+    diverged = not (np.all(np.isfinite(w)) and np.all(np.isfinite(q2)))
+    if not diverged and P.mdp is not None and P.mdp.n_outcomes:
+        r_max = float(np.abs(P.mdp.rewards).max())
+        horizon = 1.0 / (1.0 - gamma) if gamma < 1.0 else float(max_steps)
+        largest = max(float(np.abs(w).max()), float(np.abs(q2).max()))
+        diverged = largest > 10.0 * max(r_max, 1e-12) * horizon
     if not diverged:
         return
     import warnings
@@ -548,244 +553,12 @@ def _warn_if_diverged(algo: _Algo, run: _Run, alpha: Schedule) -> None:
         f"{algo.name}: the estimates diverged (beyond any possible return) with alpha "
         f"{alpha}; use a smaller step size{hint}",
         RuntimeWarning,
-        stacklevel=3,
+        stacklevel=6,
     )
-
-
-# =============================================================================== many seeds
-@dataclass
-class SeedRuns:
-    """One learner run for many seeds (independent runs), as arrays with a leading run axis.
-
-    Attributes:
-        algorithm: The learner's registry name.
-        problem: The problem's name.
-        seeds: Number of runs R.
-        returns: (R, episodes) the return G_0 of every episode of every run.
-        lengths: (R, episodes) the steps of every episode (0 where a learner added by
-            hand does not record them).
-        q: (R, S, A) the final Q of each run (as the learner's result gives it).
-        v: (R, S) the final V of each run.
-        first_actions: (R, episodes) A_0 of every episode (one-step control), else None.
-        steps: Environment steps over all runs.
-        seconds: Wall-clock time of the runs.
-    """
-
-    algorithm: str
-    problem: str
-    seeds: int
-    returns: NDArray[np.float64]
-    lengths: NDArray[np.int64]
-    q: NDArray[np.float64]
-    v: NDArray[np.float64]
-    first_actions: NDArray[np.int64] | None
-    steps: int
-    seconds: float
-
-    def mean_return(self, first: int = 0, last: int | None = None) -> float:
-        """Mean return per episode over episodes ``first .. last - 1`` and all runs."""
-        return float(self.returns[:, first:last].mean())
-
-
-def seed_study(
-    algorithm: str,
-    problem: FiniteMDP | Any,
-    seeds: int | Sequence[int] = 100,
-    *,
-    seed: Seed = 0,
-    episodes: int = 500,
-    policy: Any = None,
-    workers: int | None = None,
-    **options: Any,
-) -> SeedRuns:
-    """Run a tabular learner for many seeds independently, in one compiled call.
-
-    Run r is exactly ``learner(problem, seed=seeds[r], episodes=episodes, **options)``
-    alone (same returns, lengths, tables, bit for bit), for every registered algorithm
-    (TD and Monte Carlo). ``seeds`` is either the list of
-    seeds, or a number R of runs whose seeds are drawn from ``seed``
-    (``numpy.random.default_rng(seed).integers(2**63 - 1, size=R)``). On a FiniteMDP
-    all runs go in one call of a compiled loop parallel over runs (numba ``prange``:
-    each run has its own tables and its own RNG stream, so the numbers do not depend on
-    the number of threads, see ``numba.set_num_threads``); on a Gymnasium env the runs
-    go one after the other. The per-run results are stacked into the arrays the book's
-    figures average: every episode's return, length and first action of every run.
-
-    Args:
-        algorithm: A registered algorithm's name (``"sarsa"``, ``"mc-control"``, ...).
-        problem: A FiniteMDP (one parallel compiled call for the built-in algorithms)
-            or a Gymnasium env with discrete observations (runs one after the other).
-        seeds: The seeds of the runs, or their number.
-        seed: Seed from which the runs' seeds are drawn when ``seeds`` is a number.
-        episodes: Episodes per run.
-        policy: The policy evaluated (prediction methods).
-        workers: Most threads to run on (default: numba's, the number of CPUs).
-        **options: The learner's own keyword arguments (``alpha``, ``epsilon``, ``n``,
-            ``lam``, ``trace``, ``planning_steps``, ``gamma``, ``max_steps``, ``init``, ...).
-
-    Returns:
-        A :class:`SeedRuns`.
-    """
-    name = normalize_name(algorithm)
-    known = {spec.name: spec for spec in list_algorithms()}
-    if name not in known:
-        raise InvalidArgumentError(
-            f"unknown TD algorithm {algorithm!r} (nor a Monte Carlo one)"
-            f"{did_you_mean(name, known)}; known: {', '.join(sorted(known))}"
-        )
-    learner = known[name].learner
-    signature = inspect.signature(learner).parameters
-    allowed = {k for k, p in signature.items() if p.kind in _KEYWORDS} - _SET_BY_STUDY
-    unknown = sorted(set(options) - allowed)
-    if unknown:
-        raise InvalidArgumentError(f"{name}: unknown options {unknown}")
-    takes_policy = "policy" in signature
-    if not takes_policy and policy is not None:
-        raise InvalidArgumentError(f"{name} is a control method; it takes no policy")
-    seed_list = _seed_list(seeds, seed)
-    kwargs = dict(options, episodes=episodes, checkpoints=1)
-    if takes_policy:
-        kwargs["policy"] = policy
-    t0 = time.perf_counter()
-    from policylab.tabular import mc
-
-    batched = name in _ENTRIES or learner in (mc.mc_prediction, mc.mc_control, mc.mc_off_policy)
-    if not is_finite_mdp(problem) or not batched:  # one run at a time (an env, a new learner)
-        results = [learner(problem, seed=s, **kwargs) for s in seed_list]
-        first = [r.first_actions for r in results]
-        return SeedRuns(
-            name,
-            results[0].problem,
-            len(seed_list),
-            np.stack([r.episode_returns for r in results]),
-            np.stack([_lengths(r) for r in results]),
-            np.stack([r.q for r in results]),
-            np.stack([r.v if r.v is not None else r.q.max(axis=1) for r in results]),
-            None if any(f is None for f in first) else np.stack(first),  # type: ignore[arg-type]
-            sum(r.steps for r in results),
-            time.perf_counter() - t0,
-        )
-    rngs = np.stack([rng_states(as_generator(s), 1)[0] for s in seed_list])
-    if name not in _ENTRIES:  # Monte Carlo: the learner's own checks, then one call
-        plan = mc.planned_run(learner, problem, **kwargs)
-        with _threads(workers):
-            mc_runs, counts, q, v = mc.many_mc_runs(plan, rngs)
-        return SeedRuns(
-            name,
-            plan.mdp.name,
-            len(seed_list),
-            mc_runs.returns,
-            mc_runs.lengths,
-            q,
-            v,
-            None,
-            int(counts[:, 0].sum()),
-            time.perf_counter() - t0,
-        )
-    defaults = {
-        p.name: p.default
-        for p in inspect.signature(learner).parameters.values()
-        if p.kind is inspect.Parameter.KEYWORD_ONLY
-    }
-    kw = {**defaults, **options}
-    algo, _ = _make_algo(name, {o.param: kw[o.param] for o in _ENTRIES[name].own})
-    P, pi, _, g, a, e, episodes, max_steps = _prepare(
-        algo,
-        problem,
-        policy,
-        model=kw["model"],
-        episodes=episodes,
-        gamma=kw["gamma"],
-        alpha=kw["alpha"],
-        epsilon=kw.get("epsilon"),
-        max_steps=kw["max_steps"],
-    )
-    assert P.mdp is not None  # a FiniteMDP problem
-    R = len(seed_list)
-    tables = _tables(algo, P, pi, kw["init"], n_runs=R)
-    out = _episodes(episodes, R)
-    model = tdk.model_tuple(KernelMDP.of(P.mdp, g), P.mask)
-    settings = algo.settings(g, a, e, max_steps)
-    with _threads(workers):
-        steps = tdk.many_runs(_FAMILIES[algo.family], model, tables, settings, out, rngs, episodes)
-    seconds = time.perf_counter() - t0
-    runs = [
-        _Run(
-            algo,
-            P,
-            g,
-            max_steps,
-            rngs[r],
-            None,
-            model,
-            settings,
-            tdk.Tables(*(t if t is pi else t[r] for t in tables)),
-            tdk.Episodes(*(o[r] for o in out)),
-        )
-        for r in range(R)
-    ]
-    for run in runs:
-        _warn_if_diverged(algo, run, a)
-    return SeedRuns(
-        name,
-        P.name,
-        R,
-        out.returns,
-        out.lengths,
-        np.stack([run.q for run in runs]),
-        np.stack([run.v for run in runs]),
-        out.first_actions if algo.family == "one_step" else None,
-        int(steps.sum()),
-        seconds,
-    )
-
-
-def _lengths(res: LearnResult) -> NDArray[np.int64]:
-    """A result's episode lengths (zeros where its learner does not record them)."""
-    if res.episode_lengths is None:
-        return np.zeros(len(res.episode_returns), dtype=np.int64)
-    return res.episode_lengths
-
-
-def _seed_list(seeds: int | Sequence[int], seed: Seed) -> list[int]:
-    """The runs' seeds: the list given (each checked), or R seeds drawn from ``seed``."""
-    if isinstance(seeds, int | np.integer) and not isinstance(seeds, bool):
-        n_runs = check_episodes(seeds, "seeds")
-        return [int(x) for x in as_generator(seed).integers(2**63 - 1, size=n_runs)]
-    if isinstance(seeds, str) or not isinstance(seeds, Sequence | np.ndarray):
-        raise InvalidArgumentError(
-            f"seeds must be a number of runs or a sequence of integer seeds; got {seeds!r}"
-        )
-    out = [check_seed(s, f"seeds[{i}]") for i, s in enumerate(seeds)]
-    if not out:
-        raise InvalidArgumentError("seeds must not be empty")
-    if any(s is None for s in out):
-        raise InvalidArgumentError("seeds must be integers (None has no fixed stream)")
-    return [int(s) for s in out if s is not None]
-
-
-@contextlib.contextmanager
-def _threads(workers: int | None) -> Iterator[None]:
-    """Numba's thread count limited to ``workers`` (if given) for the ``with`` block."""
-    if workers is None:
-        yield
-        return
-    import numba
-
-    n = check_count(workers, "workers")
-    before = numba.get_num_threads()
-    numba.set_num_threads(min(n, int(numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
-    try:
-        yield
-    finally:
-        numba.set_num_threads(before)
 
 
 # =============================================================================== learners
 # =============================================================================== the entries
-#: A learner's keywords that :func:`seed_study` sets itself.
-_SET_BY_STUDY = {"problem", "episodes", "seed", "checkpoints", "progress", "policy"}
-_KEYWORDS = (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
 _SCHEDULE = "Schedule | float | str | None"
 
 _ALPHA = Option(
@@ -796,8 +569,7 @@ _ALPHA = Option(
     "(1/n, inverse:1,0.6,0.01, exp:0.5,0.999,0.01, linear:0.5,0.01,10000).",
     annotation=_SCHEDULE,
     value="0.1",
-    doc="Step size: a number, a :class:`Schedule` of the entry's update count, or a "
-    'schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).',
+    doc="Step size: a number, a :class:`Schedule` or a schedule string.",
 )
 _EPSILON = Option(
     "--epsilon",
@@ -807,8 +579,7 @@ _EPSILON = Option(
     "episode number (1/n, exp:1,0.999,0.01, linear:1,0.01,5000).",
     annotation=_SCHEDULE,
     value="0.1",
-    doc="Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of "
-    'the episode number (``"linear:1,0.01,5000"``).',
+    doc="Exploration rate: a number, a :class:`Schedule` or a schedule string.",
 )
 _INIT = Option(
     "--init",
@@ -817,8 +588,7 @@ _INIT = Option(
     "Initial value of every non-terminal entry of the table (high values explore optimistically).",
     annotation="float",
     value="0.0",
-    doc="Initial value of every non-terminal entry of the table (optimistic if high; "
-    "V(s) = 0.5 in Example 6.2).",
+    doc="Initial value of the table's non-terminal entries (optimistic if high).",
 )
 _N = Option(
     "--n",
@@ -890,6 +660,11 @@ class TDEntry:
     def options(self) -> tuple[Option, ...]:
         """The command-line options: its own, then alpha, epsilon (control) and init."""
         return (*self.own, _ALPHA, *((_EPSILON,) if self.control else ()), _INIT)
+
+    def plan(self, args: dict[str, Any]) -> Plan:
+        """The driver's :class:`~policylab.tabular.driver.Plan` of a call of this learner."""
+        algo, params = _make_algo(self, {o.param: args[o.param] for o in self.own})
+        return _plan(algo, args, params)
 
 
 TD_ENTRIES: tuple[TDEntry, ...] = (
@@ -1008,12 +783,10 @@ TD_ENTRIES: tuple[TDEntry, ...] = (
         (_PLAN,),
     ),
 )
-_ENTRIES = {e.name: e for e in TD_ENTRIES}
 
 
-def _make_algo(name: str, own: dict[str, Any]) -> tuple[_Algo, dict[str, Any]]:
+def _make_algo(entry: TDEntry, own: dict[str, Any]) -> tuple[_Algo, dict[str, Any]]:
     """The kernel settings of a TD learner from its own options, checked, and their record."""
-    entry = _ENTRIES[name]
     fields: dict[str, Any] = {}
     params: dict[str, Any] = {}
     if "n" in own:
@@ -1028,31 +801,8 @@ def _make_algo(name: str, own: dict[str, Any]) -> tuple[_Algo, dict[str, Any]]:
     if "planning_steps" in own:
         fields["planning"] = _check_planning(own["planning_steps"])
         params["planning_steps"] = fields["planning"]
-    algo = _Algo(name, entry.family, entry.control, rule=entry.rule, **fields)
+    algo = _Algo(entry.name, entry.family, entry.control, rule=entry.rule, **fields)
     return algo, params
-
-
-def _learn_entry(name: str, args: dict[str, Any]) -> LearnResult:
-    """Run the learner of entry ``name`` with a public function's arguments (its locals)."""
-    entry = _ENTRIES[name]
-    algo, params = _make_algo(name, {o.param: args[o.param] for o in entry.own})
-    shared = {k: v for k, v in args.items() if k in _SHARED}
-    return _learn(algo, args["problem"], args.get("policy"), params=params, **shared)
-
-
-#: The keywords of :func:`_learn` every public TD learner passes on.
-_SHARED = (
-    "episodes",
-    "seed",
-    "gamma",
-    "alpha",
-    "epsilon",
-    "init",
-    "checkpoints",
-    "max_steps",
-    "model",
-    "progress",
-)
 
 
 def _check_n(n: Any) -> int:
@@ -1086,13 +836,8 @@ def td0(
     *,
     episodes: int = 100,
     alpha: Schedule | float | str | None = 0.1,
-    gamma: float | None = None,
-    seed: Seed = None,
     init: float = 0.0,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """Tabular TD(0) prediction of v_pi (S&B section 6.1).
 
@@ -1100,26 +845,16 @@ def td0(
 
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
-        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
-            the equiprobable random policy).
+        policy: A :class:`~policylab.Policy` or an (S, A) array (default: equiprobable).
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against the exact answer.
-        max_steps: Step limit of an episode (then truncated: bootstrap).
-        model: The FiniteMDP behind an env, for the error curve.
-        progress: Show a progress bar.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
-        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
-        model (zeros without one) and ``policy`` is the policy evaluated.
+        A :class:`LearnResult` (the error of V is against v_pi, as above).
     """
-    return _learn_entry("td0", locals())
+    return learn_entry("td0", locals())
 
 
 def n_step_td(
@@ -1129,13 +864,8 @@ def n_step_td(
     n: int = 4,
     episodes: int = 100,
     alpha: Schedule | float | str | None = 0.1,
-    gamma: float | None = None,
-    seed: Seed = None,
     init: float = 0.0,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """n-step TD prediction of v_pi (S&B section 7.1).
 
@@ -1145,27 +875,17 @@ def n_step_td(
 
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
-        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
-            the equiprobable random policy).
+        policy: A :class:`~policylab.Policy` or an (S, A) array (default: equiprobable).
         n: Number of steps n of the n-step return (n = 1 is one-step TD).
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against the exact answer.
-        max_steps: Step limit of an episode (then truncated: bootstrap).
-        model: The FiniteMDP behind an env, for the error curve.
-        progress: Show a progress bar.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
-        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
-        model (zeros without one) and ``policy`` is the policy evaluated.
+        A :class:`LearnResult` (the error of V is against v_pi, as above).
     """
-    return _learn_entry("n-step-td", locals())
+    return learn_entry("n-step-td", locals())
 
 
 def td_lambda(
@@ -1176,13 +896,8 @@ def td_lambda(
     trace: Trace = "accumulating",
     episodes: int = 100,
     alpha: Schedule | float | str | None = 0.1,
-    gamma: float | None = None,
-    seed: Seed = None,
     init: float = 0.0,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """Tabular TD(lambda) prediction with eligibility traces (S&B section 12.2).
 
@@ -1192,28 +907,18 @@ def td_lambda(
 
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
-        policy: The policy evaluated: a :class:`~policylab.Policy` or an (S, A) array (default:
-            the equiprobable random policy).
+        policy: A :class:`~policylab.Policy` or an (S, A) array (default: equiprobable).
         lam: Trace-decay rate lambda in [0, 1] (0 is one-step TD).
         trace: Eligibility trace: accumulating or replacing.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against the exact answer.
-        max_steps: Step limit of an episode (then truncated: bootstrap).
-        model: The FiniteMDP behind an env, for the error curve.
-        progress: Show a progress bar.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult` with ``v`` and the error of V against the exact v_pi where the
-        model is known. Prediction learns V only: ``q`` is its one-step lookahead through the
-        model (zeros without one) and ``policy`` is the policy evaluated.
+        A :class:`LearnResult` (the error of V is against v_pi, as above).
     """
-    return _learn_entry("td-lambda", locals())
+    return learn_entry("td-lambda", locals())
 
 
 def sarsa(
@@ -1222,13 +927,8 @@ def sarsa(
     episodes: int = 500,
     alpha: Schedule | float | str | None = 0.1,
     epsilon: Schedule | float | str | None = 0.1,
-    gamma: float | None = None,
-    seed: Seed = None,
     init: float = 0.0,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """Sarsa, on-policy TD control (S&B section 6.4).
 
@@ -1238,24 +938,15 @@ def sarsa(
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against the exact answer.
-        max_steps: Step limit of an episode (then truncated: bootstrap).
-        model: The FiniteMDP behind an env, for the error curve.
-        progress: Show a progress bar.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
-    return _learn_entry("sarsa", locals())
+    return learn_entry("sarsa", locals())
 
 
 def q_learning(
@@ -1264,13 +955,8 @@ def q_learning(
     episodes: int = 500,
     alpha: Schedule | float | str | None = 0.1,
     epsilon: Schedule | float | str | None = 0.1,
-    gamma: float | None = None,
-    seed: Seed = None,
     init: float = 0.0,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """Q-learning, off-policy TD control (S&B section 6.5).
 
@@ -1279,24 +965,15 @@ def q_learning(
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against the exact answer.
-        max_steps: Step limit of an episode (then truncated: bootstrap).
-        model: The FiniteMDP behind an env, for the error curve.
-        progress: Show a progress bar.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
-    return _learn_entry("q-learning", locals())
+    return learn_entry("q-learning", locals())
 
 
 def expected_sarsa(
@@ -1305,13 +982,8 @@ def expected_sarsa(
     episodes: int = 500,
     alpha: Schedule | float | str | None = 0.1,
     epsilon: Schedule | float | str | None = 0.1,
-    gamma: float | None = None,
-    seed: Seed = None,
     init: float = 0.0,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """Expected Sarsa (S&B section 6.6).
 
@@ -1321,24 +993,15 @@ def expected_sarsa(
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against the exact answer.
-        max_steps: Step limit of an episode (then truncated: bootstrap).
-        model: The FiniteMDP behind an env, for the error curve.
-        progress: Show a progress bar.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
-    return _learn_entry("expected-sarsa", locals())
+    return learn_entry("expected-sarsa", locals())
 
 
 def double_q_learning(
@@ -1347,13 +1010,8 @@ def double_q_learning(
     episodes: int = 500,
     alpha: Schedule | float | str | None = 0.1,
     epsilon: Schedule | float | str | None = 0.1,
-    gamma: float | None = None,
-    seed: Seed = None,
     init: float = 0.0,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """Double Q-learning (S&B section 6.7), which removes the maximisation bias.
 
@@ -1364,24 +1022,15 @@ def double_q_learning(
     Args:
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against the exact answer.
-        max_steps: Step limit of an episode (then truncated: bootstrap).
-        model: The FiniteMDP behind an env, for the error curve.
-        progress: Show a progress bar.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
-    return _learn_entry("double-q-learning", locals())
+    return learn_entry("double-q-learning", locals())
 
 
 def n_step_sarsa(
@@ -1391,13 +1040,8 @@ def n_step_sarsa(
     episodes: int = 500,
     alpha: Schedule | float | str | None = 0.1,
     epsilon: Schedule | float | str | None = 0.1,
-    gamma: float | None = None,
-    seed: Seed = None,
     init: float = 0.0,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """n-step Sarsa (S&B section 7.2).
 
@@ -1408,24 +1052,15 @@ def n_step_sarsa(
         problem: A FiniteMDP (compiled) or a Gymnasium env with Discrete observations.
         n: Number of steps n of the n-step return (n = 1 is one-step TD).
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against the exact answer.
-        max_steps: Step limit of an episode (then truncated: bootstrap).
-        model: The FiniteMDP behind an env, for the error curve.
-        progress: Show a progress bar.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
-    return _learn_entry("n-step-sarsa", locals())
+    return learn_entry("n-step-sarsa", locals())
 
 
 def sarsa_lambda(
@@ -1436,13 +1071,8 @@ def sarsa_lambda(
     episodes: int = 500,
     alpha: Schedule | float | str | None = 0.1,
     epsilon: Schedule | float | str | None = 0.1,
-    gamma: float | None = None,
-    seed: Seed = None,
     init: float = 0.0,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """Tabular Sarsa(lambda) with eligibility traces (S&B section 12.7).
 
@@ -1454,24 +1084,15 @@ def sarsa_lambda(
         lam: Trace-decay rate lambda in [0, 1] (0 is one-step TD).
         trace: Eligibility trace: accumulating or replacing.
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against the exact answer.
-        max_steps: Step limit of an episode (then truncated: bootstrap).
-        model: The FiniteMDP behind an env, for the error curve.
-        progress: Show a progress bar.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
-    return _learn_entry("sarsa-lambda", locals())
+    return learn_entry("sarsa-lambda", locals())
 
 
 def dyna_q(
@@ -1481,13 +1102,8 @@ def dyna_q(
     episodes: int = 500,
     alpha: Schedule | float | str | None = 0.1,
     epsilon: Schedule | float | str | None = 0.1,
-    gamma: float | None = None,
-    seed: Seed = None,
     init: float = 0.0,
-    checkpoints: int = 50,
-    max_steps: int = 10_000,
-    model: FiniteMDP | None = None,
-    progress: bool = False,
+    **options: Unpack[LearnOptions],
 ) -> LearnResult:
     """Tabular Dyna-Q (S&B section 8.2): Q-learning plus planning from a learned model.
 
@@ -1501,28 +1117,20 @@ def dyna_q(
         planning_steps: Planning updates from the learned model after each real step (0 is
             Q-learning).
         episodes: Number of episodes.
-        alpha: Step size: a number, a :class:`Schedule` of the entry's update count, or a
-            schedule string (``"1/n"``, ``"inverse:1,0.6,0.01"``, ``"exp:0.5,0.9999,0.01"``).
-        epsilon: Exploration rate of the epsilon-greedy behaviour: a number, or a schedule of
-            the episode number (``"linear:1,0.01,5000"``).
-        gamma: Discount rate (default: the problem's).
-        seed: Seed or Generator; same seed, same result.
-        init: Initial value of every non-terminal entry of the table (optimistic if high; V(s) =
-            0.5 in Example 6.2).
-        checkpoints: About how many points of the error curve against the exact answer.
-        max_steps: Step limit of an episode (then truncated: bootstrap).
-        model: The FiniteMDP behind an env, for the error curve.
-        progress: Show a progress bar.
+        alpha: Step size: a number, a :class:`Schedule` or a schedule string.
+        epsilon: Exploration rate: a number, a :class:`Schedule` or a schedule string.
+        init: Initial value of the table's non-terminal entries (optimistic if high).
+        **options: The options every learner shares, :class:`~policylab.tabular.LearnOptions`.
 
     Returns:
-        A :class:`LearnResult`: Q, its greedy policy, every episode's return and the error
-        against q* where the model is known.
+        A :class:`LearnResult` (the error is against q* where the model is known).
     """
-    return _learn_entry("dyna-q", locals())
+    return learn_entry("dyna-q", locals())
 
 
 # </generated learners>
 
+add_entries(TD_ENTRIES)
 for _entry in TD_ENTRIES:
     register_algorithm(
         _entry.name,

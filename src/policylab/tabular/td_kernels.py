@@ -15,7 +15,7 @@ compiled versions sample the model with the shared kernel conventions
 (:func:`~policylab.tabular.kernels.sample_start`,
 :func:`~policylab.tabular.kernels.sample_next`: no random number for an outcome that
 is certain), and the agent's choices use the shared
-:func:`~policylab.tabular.kernels.epsilon_greedy_action` /
+:func:`~policylab.tabular.kernels.epsilon_greedy_at` /
 :func:`~policylab.tabular.kernels.sample_action` with the run's xoshiro state ``rng``.
 So on a deterministic MDP both paths give bit-identical results for one seed.
 
@@ -40,7 +40,7 @@ from policylab.tabular.kernels import (
     Model,
     env_reset,
     env_step,
-    epsilon_greedy_action,
+    epsilon_greedy_at,
     rand_below,
     sample_action,
     sample_next,
@@ -169,7 +169,7 @@ def model_tuple(km: Any | None, mask: Any = None) -> Model:
     return Model(
         km.indptr,
         km.next_states,
-        km.probs,
+        km.cdf,
         km.rewards,
         km.terminal,
         km.initial,
@@ -194,7 +194,7 @@ def td0_kernel(
     Each step: A ~ pi(. | S); take A, observe R, S'; V(S) <- V(S) + alpha [R + gamma
     V(S') - V(S)]; S <- S'.
     """
-    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    indptr, next_states, cdf, rewards, terminal, initial, mask = model
     returns, lengths = out.returns, out.lengths
     gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
     pi, counts = tables.pi, tables.counts[:, 0]
@@ -207,7 +207,7 @@ def td0_kernel(
         while True:
             a = sample_action(pi[s], rng)
             s2, r, terminated, truncated = env_step(
-                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
+                env, s, a, rng, indptr, next_states, cdf, rewards, terminal, n_actions
             )
             t += 1
             g += disc * r
@@ -254,7 +254,7 @@ def one_step_control_kernel(
     (numba prunes the ``env is None`` branch): the call, with its six array arguments,
     cost this hottest loop a third of its speed.
     """
-    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    indptr, next_states, cdf, rewards, terminal, initial, mask = model
     returns, lengths = out.returns, out.lengths
     gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
     epsilon_params, rule, first_actions = settings.epsilon, settings.rule, out.first_actions
@@ -264,12 +264,12 @@ def one_step_control_kernel(
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
         s = env_reset(env, initial, rng)
-        a = epsilon_greedy_action(qb[s], mask[s], epsilon, rng)
+        a = epsilon_greedy_at(qb, mask, s, epsilon, rng)
         first_actions[k] = a
         g, disc, t = 0.0, 1.0, 0
         while True:
             if env is None:  # compiled path: one outcome of row s * A + a of the model
-                o = sample_next(indptr, probs, s * n_actions + a, rng)
+                o = sample_next(indptr, cdf, s * n_actions + a, rng)
                 s2, r, terminated, truncated = (
                     next_states[o],
                     rewards[o],
@@ -287,7 +287,7 @@ def one_step_control_kernel(
             if rule == SARSA:
                 q_next = 0.0
                 if not terminated:
-                    a2 = epsilon_greedy_action(q1[s2], mask[s2], epsilon, rng)
+                    a2 = epsilon_greedy_at(q1, mask, s2, epsilon, rng)
                     q_next = q1[s2, a2]
                 q1[s, a] = td_update(q1[s, a], alpha, sarsa_target(r, gamma, q_next, terminated))
             elif rule == Q_LEARNING:
@@ -307,7 +307,7 @@ def one_step_control_kernel(
             if terminated or truncated or t >= max_steps:
                 break
             if rule != SARSA:
-                a2 = epsilon_greedy_action(qb[s2], mask[s2], epsilon, rng)
+                a2 = epsilon_greedy_at(qb, mask, s2, epsilon, rng)
             s, a = s2, a2
         returns[k] = g
         lengths[k] = t
@@ -338,7 +338,7 @@ def n_step_kernel(
     and W(S_tau[, A_tau]) <- W + alpha [G - W]. A truncated episode bootstraps from its
     last state. With n = 1 this is exactly TD(0) or Sarsa.
     """
-    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    indptr, next_states, cdf, rewards, terminal, initial, mask = model
     returns, lengths = out.returns, out.lengths
     gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
     epsilon_params, control, n = settings.epsilon, settings.control, settings.n
@@ -355,7 +355,7 @@ def n_step_kernel(
         s0 = env_reset(env, initial, rng)
         S_buf[0] = s0
         if control:
-            A_buf[0] = epsilon_greedy_action(w[s0], mask[s0], epsilon, rng)
+            A_buf[0] = epsilon_greedy_at(w, mask, s0, epsilon, rng)
         T = big
         bootstrap_end = False
         g, disc, t = 0.0, 1.0, 0
@@ -370,7 +370,7 @@ def n_step_kernel(
                     rng,
                     indptr,
                     next_states,
-                    probs,
+                    cdf,
                     rewards,
                     terminal,
                     n_actions,
@@ -383,7 +383,7 @@ def n_step_kernel(
                     T = t + 1
                     bootstrap_end = not terminated
                 if control and not terminated:
-                    A_buf[(t + 1) % m] = epsilon_greedy_action(w[s2], mask[s2], epsilon, rng)
+                    A_buf[(t + 1) % m] = epsilon_greedy_at(w, mask, s2, epsilon, rng)
             tau = t - n + 1
             if tau < 0 and t >= T - 1:  # the episode ended before n steps: skip idle t
                 t, tau = n - 1, 0
@@ -426,7 +426,7 @@ def lambda_kernel(
     each episode. With lambda = 0 this is exactly TD(0) or Sarsa. The step size is read
     at the current entry's update count.
     """
-    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    indptr, next_states, cdf, rewards, terminal, initial, mask = model
     returns, lengths = out.returns, out.lengths
     gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
     epsilon_params, control = settings.epsilon, settings.control
@@ -440,13 +440,13 @@ def lambda_kernel(
         epsilon = schedule_value(epsilon_params, k + 1.0)
         e[:, :] = 0.0
         s = env_reset(env, initial, rng)
-        a = epsilon_greedy_action(w[s], mask[s], epsilon, rng) if control else 0
+        a = epsilon_greedy_at(w, mask, s, epsilon, rng) if control else 0
         g, disc, t = 0.0, 1.0, 0
         while True:
             if not control:
                 a = sample_action(pi[s], rng)
             s2, r, terminated, truncated = env_step(
-                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
+                env, s, a, rng, indptr, next_states, cdf, rewards, terminal, n_actions
             )
             t += 1
             g += disc * r
@@ -456,7 +456,7 @@ def lambda_kernel(
             w_next = 0.0
             if not terminated:
                 if control:
-                    a2 = epsilon_greedy_action(w[s2], mask[s2], epsilon, rng)
+                    a2 = epsilon_greedy_at(w, mask, s2, epsilon, rng)
                     w_next = w[s2, a2]
                 else:
                     w_next = w[s2, 0]
@@ -502,7 +502,7 @@ def dyna_q_kernel(
     ``seen[0]`` counts the pairs seen, ``seen[1:]`` lists them (kept across calls).
     With ``n_planning = 0`` this is exactly Q-learning.
     """
-    indptr, next_states, probs, rewards, terminal, initial, mask = model
+    indptr, next_states, cdf, rewards, terminal, initial, mask = model
     returns, lengths = out.returns, out.lengths
     gamma, alpha_params, max_steps = settings.gamma, settings.alpha, settings.max_steps
     epsilon_params, n_planning = settings.epsilon, settings.planning
@@ -513,11 +513,11 @@ def dyna_q_kernel(
     for k in range(k0, k1):
         epsilon = schedule_value(epsilon_params, k + 1.0)
         s = env_reset(env, initial, rng)
-        a = epsilon_greedy_action(q[s], mask[s], epsilon, rng)
+        a = epsilon_greedy_at(q, mask, s, epsilon, rng)
         g, disc, t = 0.0, 1.0, 0
         while True:
             s2, r, terminated, truncated = env_step(
-                env, s, a, rng, indptr, next_states, probs, rewards, terminal, n_actions
+                env, s, a, rng, indptr, next_states, cdf, rewards, terminal, n_actions
             )
             t += 1
             g += disc * r
@@ -545,7 +545,7 @@ def dyna_q_kernel(
                 q[ps, pa] = td_update(q[ps, pa], p_alpha, target)
             if terminated or truncated or t >= max_steps:
                 break
-            a = epsilon_greedy_action(q[s2], mask[s2], epsilon, rng)
+            a = epsilon_greedy_at(q, mask, s2, epsilon, rng)
             s = s2
         returns[k] = g
         lengths[k] = t

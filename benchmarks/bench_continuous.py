@@ -243,7 +243,7 @@ def pendulum(args: argparse.Namespace) -> None:
     torch.set_num_threads(1)
     loads = [_load()]
     published = {"sac": -157.0, "td3": -152.0}
-    libs = ["policylab", "SB3"] if args.sb3 else ["policylab"]
+    libs = args.libs or (["policylab", "SB3"] if args.sb3 else ["policylab"])
     rows = [
         f"| algorithm | library | seed | mean return, {args.episodes} greedy episodes "
         "| SB3 zoo's published | wall-clock s |",
@@ -281,7 +281,8 @@ def pendulum(args: argparse.Namespace) -> None:
         write_section(
             "Deep RL: SAC and TD3 on Pendulum-v1",
             f"python benchmarks/bench_continuous.py --pendulum --seeds {args.seeds} "
-            f"--episodes {args.episodes}" + (" --sb3" if args.sb3 else ""),
+            f"--episodes {args.episodes}" + (" --sb3" if args.sb3 else "")
+            + (f" --libs {' '.join(libs)}" if args.libs else ""),
             body,
         )
 
@@ -299,6 +300,10 @@ def main() -> None:
     p.add_argument("--seed-list", type=int, nargs="+", help="these seeds instead of --seeds")
     p.add_argument("--episodes", type=int, default=750, help="evaluation episodes (--pendulum)")
     p.add_argument("--sb3", action="store_true", help="also train SB3 (--pendulum)")
+    p.add_argument(
+        "--libs", nargs="+", choices=["policylab", "SB3"],
+        help="train these libraries only (--pendulum; e.g. one library and seed per process)",
+    )  # fmt: skip
     p.add_argument(
         "--per-update", type=int, default=0, metavar="N",
         help="instead: N single updates of each library, alternating, CPU ms each",

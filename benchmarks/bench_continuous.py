@@ -281,7 +281,8 @@ def pendulum(args: argparse.Namespace) -> None:
         write_section(
             "Deep RL: SAC and TD3 on Pendulum-v1",
             f"python benchmarks/bench_continuous.py --pendulum --seeds {args.seeds} "
-            f"--episodes {args.episodes}" + (" --sb3" if args.sb3 else "")
+            f"--episodes {args.episodes}"
+            + (" --sb3" if args.sb3 else "")
             + (f" --libs {' '.join(libs)}" if args.libs else ""),
             body,
         )

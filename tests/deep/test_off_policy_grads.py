@@ -25,6 +25,7 @@ from policylab.deep.sac.losses import (
     squashed_gaussian_grad,
     squashed_gaussian_log_prob,
 )
+from policylab.deep.td3.losses import smoothed_target_actions, td3_actor_loss, td3_actor_loss_grad
 
 
 def _gen(seed: int) -> torch.Generator:
@@ -82,6 +83,9 @@ def test_loss_gradients_are_autograds() -> None:
     log_alpha = torch.tensor(math.log(0.5), requires_grad=True)
     entropy_coef_loss(log_alpha, log_prob.detach(), -2.0).backward()
     torch.testing.assert_close(entropy_coef_loss_grad(log_prob.detach(), -2.0), log_alpha.grad)
+    q1 = torch.randn(1, 5, generator=_gen(3)).requires_grad_()
+    td3_actor_loss(q1[0]).backward()
+    torch.testing.assert_close(td3_actor_loss_grad(q1.detach()), q1.grad)
 
 
 def test_squashed_gaussian_grad_is_autograds() -> None:
@@ -152,3 +156,39 @@ def test_sac_update_is_the_autograd_update() -> None:
     torch.testing.assert_close(stats["critic_loss"], critic_loss.detach())
     torch.testing.assert_close(stats["actor_loss"], actor_loss.detach())
     torch.testing.assert_close(stats["ent_coef_loss"], alpha_loss.detach())
+
+
+def test_td3_update_is_the_autograd_update() -> None:
+    """Two hand-written TD3 updates (the second with the delayed actor step) equal autograd's."""
+    agent = pl.deep.TD3("Pendulum-v1", seed=0, hidden=(16, 16), batch_size=32, learning_starts=64)
+    agent.learn(100)
+    ref = copy.deepcopy(agent)
+    batches = [agent.replay.sample(32) for _ in range(2)]
+    stats = [agent._train_step(b) for b in batches]
+    cfg = ref.config
+    for i, batch in enumerate(batches):
+        obs, actions, rewards, next_obs, discounts = ref._batch_tensors(batch)
+        noise = cfg.target_policy_noise * torch.randn(actions.shape, generator=ref.torch_gen)
+        with torch.no_grad():
+            a2 = smoothed_target_actions(ref.actor_target(next_obs), noise, cfg.target_noise_clip)
+            y = clipped_double_q_targets(rewards, discounts, ref.critic_target(next_obs, a2))
+        critic_loss = twin_q_loss(ref.critic(obs, actions), y)
+        ref.critic_optimizer.zero_grad()
+        critic_loss.backward()
+        ref.critic_optimizer.step()
+        torch.testing.assert_close(stats[i]["critic_loss"], critic_loss.detach())
+        ref.n_updates += 1
+        if ref.n_updates % cfg.policy_delay == 0:
+            detached = [p.detach()[:1] for p in ref.critic.parameters()]
+            actor_loss = td3_actor_loss(ref.critic(obs, ref.actor(obs), detached)[0])
+            ref.actor_optimizer.zero_grad()
+            actor_loss.backward()
+            ref.actor_optimizer.step()
+            polyak_update(ref._targets, ref._online, cfg.tau)
+            torch.testing.assert_close(stats[i]["actor_loss"], actor_loss.detach())
+    assert "actor_loss" in stats[0] or "actor_loss" in stats[1]
+    for name in ("actor", "actor_target", "critic", "critic_target"):
+        for p, r in zip(
+            getattr(agent, name).parameters(), getattr(ref, name).parameters(), strict=True
+        ):
+            torch.testing.assert_close(p, r)

@@ -159,6 +159,75 @@ def speed(args: argparse.Namespace) -> None:
         )
 
 
+def _floor(algo: str, obs_dim: int, m: int, hidden: tuple[int, int], b: int) -> object:
+    """The matrix products of one update of ``algo``, bare (random operands, no autograd).
+
+    SAC: the policy at S and S' (2B rows) and its backward at S; the target critics at
+    S'; the critics at (S, A), forward and backward with weight gradients; the critics
+    at (S, a ~ pi) and their backward to the action. TD3: the target actor at S', the
+    target critics, the critics forward and backward, and, every second update (half
+    of it is counted: run it with weight 1/2), the actor at S, Q_1 at (S, mu(S)) and
+    both backward. The two critics are one batched product per layer, as both
+    libraries' arithmetic allows; the one-output layer and element-wise work are left
+    out, so this is a lower bound for any implementation of the same update.
+    """
+    import torch
+
+    h1, h2 = hidden
+    d = obs_dim + m + 1
+    r = torch.randn
+    x2, xb = r(2 * b, obs_dim), r(b, obs_dim)
+    w1, w2, w3 = r(h1, obs_dim), r(h2, h1), r((2 if algo == "sac" else 1) * m, h2)
+    h1b2, h2b = r(2 * b, h1), r(b, h2)
+    g3, g2 = r(b, w3.shape[0]), r(b, h2)
+    xc, w_in, hk, wk, bk, gk, wa = (
+        r(b, d),
+        r(2, d, h1),
+        r(2, b, h1),
+        r(2, h1, h2),
+        r(2, 1, h2),
+        r(2, b, h2),
+        r(2, m, h1),
+    )
+    gk1 = r(2, b, h1)
+
+    def critic(k: int = 2) -> None:  # forward of k critics
+        torch.bmm(xc.unsqueeze(0).expand(k, -1, -1), w_in[:k])
+        torch.baddbmm(bk[:k], hk[:k], wk[:k])
+
+    def actor(rows: int) -> None:
+        (
+            torch.mm(x2[:rows], w1.t()),
+            torch.mm(h1b2[:rows], w2.t()),
+            torch.mm(h1b2[:rows, :h2], w3.t()),
+        )
+
+    def actor_backward() -> None:
+        torch.mm(g3.t(), h2b), torch.mm(g3, w3), torch.mm(g2.t(), h1b2[:b]), torch.mm(g2, w2)
+        torch.mm(xb.t(), h1b2[:b])
+
+    def critic_backward(k: int = 2, weights: bool = True) -> None:
+        if weights:
+            torch.bmm(hk.transpose(1, 2), gk), torch.bmm(xc.t().unsqueeze(0).expand(2, -1, -1), gk1)
+        torch.bmm(gk[:k], wk[:k].transpose(1, 2)), torch.bmm(gk1[:k], wa[:k].transpose(1, 2))
+
+    if algo == "sac":
+
+        def every() -> None:
+            actor(2 * b), actor_backward()
+            critic(), critic(), critic_backward(), critic(), critic_backward(weights=False)
+
+        return every, None
+
+    def every_td3() -> None:
+        actor(b), critic(), critic(), critic_backward()
+
+    def delayed() -> None:
+        actor(b), critic(1), critic_backward(1, weights=False), actor_backward()
+
+    return every_td3, delayed
+
+
 def per_update(args: argparse.Namespace) -> None:
     """CPU ms of single updates of both libraries, alternating in one process (p25)."""
     import gymnasium as gym
@@ -193,18 +262,27 @@ def per_update(args: argparse.Namespace) -> None:
         def sb3(model: object = model) -> None:
             model.train(gradient_steps=1, batch_size=256)  # type: ignore[attr-defined]
 
-        times: dict[str, list[float]] = {"policylab": [], "SB3": []}
+        every, delayed = _floor(  # type: ignore[misc]
+            algo, agent.obs_dim, agent.action_dim, NETS[algo], 256
+        )
+        fns = [("policylab", ours), ("SB3", sb3), ("floor", every)]
+        if delayed is not None:
+            fns.append(("floor, delayed part", delayed))
+        times: dict[str, list[float]] = {lib: [] for lib, _ in fns}
         for i in range(args.per_update + 10):
-            for lib, fn in (("policylab", ours), ("SB3", sb3))[:: 1 if i % 2 == 0 else -1]:
+            for lib, fn in fns[:: 1 if i % 2 == 0 else -1]:
                 t = time.process_time()
                 fn()
                 if i >= 10:  # the first ten of each warm up
                     times[lib].append(time.process_time() - t)
         ms = {lib: 1000 * float(np.percentile(ts, 25)) for lib, ts in times.items()}
+        floor = ms["floor"] + ms.get("floor, delayed part", 0.0) / 2  # TD3: every 2nd update
         print(
             f"{algo.upper()}: policylab {ms['policylab']:.2f} ms, SB3 {ms['SB3']:.2f} ms CPU per "
             f"update (25th percentile of {args.per_update} alternating updates each), "
-            f"SB3 / policylab {ms['SB3'] / ms['policylab']:.2f}x",
+            f"SB3 / policylab {ms['SB3'] / ms['policylab']:.2f}x; the update's matrix products "
+            f"alone (the floor) {floor:.2f} ms: policylab at {ms['policylab'] / floor:.2f}x "
+            f"the floor, SB3 at {ms['SB3'] / floor:.2f}x",
             flush=True,
         )
     print(_load())
@@ -243,7 +321,7 @@ def pendulum(args: argparse.Namespace) -> None:
     torch.set_num_threads(1)
     loads = [_load()]
     published = {"sac": -157.0, "td3": -152.0}
-    libs = ["policylab", "SB3"] if args.sb3 else ["policylab"]
+    libs = args.libs or (["policylab", "SB3"] if args.sb3 else ["policylab"])
     rows = [
         f"| algorithm | library | seed | mean return, {args.episodes} greedy episodes "
         "| SB3 zoo's published | wall-clock s |",
@@ -281,7 +359,9 @@ def pendulum(args: argparse.Namespace) -> None:
         write_section(
             "Deep RL: SAC and TD3 on Pendulum-v1",
             f"python benchmarks/bench_continuous.py --pendulum --seeds {args.seeds} "
-            f"--episodes {args.episodes}" + (" --sb3" if args.sb3 else ""),
+            f"--episodes {args.episodes}"
+            + (" --sb3" if args.sb3 else "")
+            + (f" --libs {' '.join(libs)}" if args.libs else ""),
             body,
         )
 
@@ -299,6 +379,10 @@ def main() -> None:
     p.add_argument("--seed-list", type=int, nargs="+", help="these seeds instead of --seeds")
     p.add_argument("--episodes", type=int, default=750, help="evaluation episodes (--pendulum)")
     p.add_argument("--sb3", action="store_true", help="also train SB3 (--pendulum)")
+    p.add_argument(
+        "--libs", nargs="+", choices=["policylab", "SB3"],
+        help="train these libraries only (--pendulum; e.g. one library and seed per process)",
+    )  # fmt: skip
     p.add_argument(
         "--per-update", type=int, default=0, metavar="N",
         help="instead: N single updates of each library, alternating, CPU ms each",

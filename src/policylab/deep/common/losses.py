@@ -10,8 +10,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import torch
+from torch.nn import functional
 
-__all__ = ["clipped_double_q_targets", "polyak_update", "twin_q_loss"]
+__all__ = ["clipped_double_q_targets", "polyak_update", "twin_q_loss", "twin_q_loss_grad"]
 
 
 def clipped_double_q_targets(
@@ -37,7 +38,7 @@ def clipped_double_q_targets(
         next_log_prob: (B,) log pi(A' | S') for SAC's soft target, or None for TD3.
         alpha: The entropy temperature (SAC).
     """
-    bootstrap = next_q.min(dim=0).values
+    bootstrap = next_q.amin(dim=0)
     if next_log_prob is not None:
         bootstrap = bootstrap - alpha * next_log_prob
     return rewards + discounts * bootstrap
@@ -55,7 +56,20 @@ def twin_q_loss(q: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
         q: (2, B) Q_1(S, A) and Q_2(S, A).
         targets: (B,) y, held constant.
     """
-    return 0.5 * ((q - targets.unsqueeze(0)) ** 2).mean(dim=1).sum()
+    # the same number in one kernel: with two critics, sum_i mean_b / 2 = mean over (i, b)
+    return functional.mse_loss(q, targets.unsqueeze(0).expand_as(q))
+
+
+def twin_q_loss_grad(q: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+    """The gradient of :func:`twin_q_loss` with respect to the critics' values.
+
+    dL/dQ_i(s_b, a_b) = (Q_i(s_b, a_b) - y_b) / B
+
+    Args:
+        q: (2, B) Q_1(S, A) and Q_2(S, A).
+        targets: (B,) y, held constant.
+    """
+    return (q - targets.unsqueeze(0)) / q.shape[1]
 
 
 @torch.no_grad()

@@ -28,14 +28,148 @@ from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import NStepWindow, ReplayBatch, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check_replay_settings, option
-from policylab.deep.common.losses import twin_q_loss
+from policylab.deep.common.losses import twin_q_loss, twin_q_loss_grad
+from policylab.deep.common.mlp_grad import _activation_backward
 from policylab.deep.common.networks import TwinQNetwork, clip_grad_norm
 from policylab.exceptions import InvalidArgumentError, NonFiniteError
 from policylab.validation import fmt_number
 
-__all__ = ["OffPolicyAgent", "OffPolicyConfig", "Tensors", "check_bounded_box"]
+__all__ = [
+    "OffPolicyAgent",
+    "OffPolicyConfig",
+    "Tensors",
+    "TwinQCache",
+    "adam_step",
+    "check_bounded_box",
+    "twin_q_backward",
+    "twin_q_forward",
+]
 
 Tensors = dict[str, torch.Tensor]
+
+_ACT_NAMES: dict[type[torch.nn.Module], str] = {
+    torch.nn.ReLU: "relu",
+    torch.nn.Tanh: "tanh",
+    torch.nn.ELU: "elu",
+}
+
+
+@dataclasses.dataclass
+class TwinQCache:
+    """What :func:`twin_q_backward` needs from :func:`twin_q_forward`.
+
+    Attributes:
+        x: (B, obs_dim + action_dim + 1) the first layer's input [s, a, 1].
+        w_in: (k, obs_dim + action_dim + 1, H_1) the first layer [W_s; W_a; b].
+        hidden: Every hidden layer's output act(z_l), each (k, B, H_l).
+        params: The weights then biases the forward pass used.
+        act: Activation name.
+    """
+
+    x: torch.Tensor
+    w_in: torch.Tensor
+    hidden: list[torch.Tensor]
+    params: list[torch.Tensor]
+    act: str
+
+
+def _act_(h: torch.Tensor, act: str) -> torch.Tensor:
+    """act(h) in place on ``h`` (a fresh output of the forward pass)."""
+    if act == "relu":
+        return torch.relu_(h)
+    if act == "tanh":
+        return torch.tanh_(h)
+    return torch.nn.functional.elu_(h)
+
+
+@torch.no_grad()
+def twin_q_forward(
+    critic: TwinQNetwork,
+    obs: torch.Tensor,
+    actions: torch.Tensor,
+    params: Sequence[torch.Tensor] | None = None,
+) -> tuple[torch.Tensor, TwinQCache]:
+    """(2, B) Q_1(s, a), Q_2(s, a) without autograd, and what their backward pass needs.
+
+    The same arithmetic as :meth:`TwinQNetwork.forward` (one product [s, a, 1] [W_s;
+    W_a; b] for the first layer, one batched product per hidden layer, the one-output
+    layer as a product and a sum); ``params`` as there (e.g. first-axis slices ``[:1]``
+    for Q_1 alone, shape (1, B)).
+    """
+    ps: list[torch.Tensor] = list(critic.parameters() if params is None else params)
+    act = _ACT_NAMES[type(critic.act)]
+    n = len(ps) // 2
+    ws, bs = ps[: n + 1], ps[n + 1 :]
+    k = len(ws[0])
+    x = torch.cat([obs.reshape(len(obs), -1), actions, obs.new_ones((len(obs), 1))], 1)
+    w_in = torch.cat([ws[0], ws[1], bs[0]], 1)
+    h = _act_(torch.bmm(x.unsqueeze(0).expand(k, -1, -1), w_in), act)
+    hidden = [h]
+    for i in range(1, n - 1):
+        h = _act_(torch.baddbmm(bs[i], h, ws[i + 1]), act)
+        hidden.append(h)
+    q = (h * ws[n].reshape(k, 1, -1)).sum(-1) + bs[n - 1].reshape(k, 1)
+    return q, TwinQCache(x, w_in, hidden, ps, act)
+
+
+def _grad_buffer(p: torch.Tensor) -> torch.Tensor:
+    """``p.grad``, created (uninitialised) if ``p`` has none; it is then overwritten."""
+    if p.grad is None:
+        p.grad = torch.empty_like(p)
+    return p.grad
+
+
+@torch.no_grad()
+def twin_q_backward(
+    cache: TwinQCache, dq: torch.Tensor, param_grads: bool = True, action_grad: bool = False
+) -> torch.Tensor | None:
+    """Backpropagate dL/dQ through the twin critics by hand (no autograd graph).
+
+    With z_l = h_{l-1} W_l + b_l, h_l = act(z_l) and Q = h_n w + b per critic:
+
+        dw = sum_batch dQ h_n,  db = sum_batch dQ,  dh_n = dQ w^T,
+        dz_l = dh_l * act'(z_l),  dW_l = h_{l-1}^T dz_l,  db_l = sum_batch dz_l,
+        dh_{l-1} = dz_l W_l^T,
+
+    and for the first layer dW_in = [s, a, 1]^T dz_1 (the rows of W_s, W_a and b), and
+    dL/da = sum_i dz_1 W_a^T. The same products autograd runs, without its graph.
+
+    Args:
+        cache: From :func:`twin_q_forward`.
+        dq: (k, B) dL/dQ_i(s_b, a_b).
+        param_grads: Write dL/dtheta into the ``.grad`` of the parameters the forward
+            pass used (overwriting it); False for an actor's loss, whose critics are
+            held constant.
+        action_grad: Also return dL/da, (B, action_dim).
+
+    Returns:
+        dL/da, or None without ``action_grad``.
+    """
+    ps, act, hidden = cache.params, cache.act, cache.hidden
+    n = len(ps) // 2
+    ws, bs = ps[: n + 1], ps[n + 1 :]
+    k = len(ws[0])
+    h = hidden[-1]
+    if param_grads:
+        torch.sum(dq, 1, keepdim=True, out=_grad_buffer(bs[n - 1]).view(k, 1))
+        out = _grad_buffer(ws[n]).view(k, 1, -1)
+        torch.bmm(dq.unsqueeze(1), h, out=out)
+    g = _activation_backward(dq.unsqueeze(-1) * ws[n].reshape(k, 1, -1), h, act)
+    for i in range(len(hidden) - 2, -1, -1):  # the layer after hidden[i]: ws[i + 2], bs[i + 1]
+        h_in = hidden[i]
+        if param_grads:
+            torch.sum(g, 1, keepdim=True, out=_grad_buffer(bs[i + 1]))
+            torch.bmm(h_in.transpose(1, 2), g, out=_grad_buffer(ws[i + 2]))
+        g = _activation_backward(torch.bmm(g, ws[i + 2].transpose(1, 2)), h_in, act)
+    if param_grads:
+        d_in = torch.bmm(cache.x.t().unsqueeze(0).expand(k, -1, -1), g)
+        n_obs, n_act = ws[0].shape[1], ws[1].shape[1]
+        _grad_buffer(ws[0]).copy_(d_in[:, :n_obs])
+        _grad_buffer(ws[1]).copy_(d_in[:, n_obs : n_obs + n_act])
+        _grad_buffer(bs[0]).copy_(d_in[:, n_obs + n_act :])
+    if not action_grad:
+        return None
+    return torch.bmm(g, ws[1].transpose(1, 2)).sum(0)
 
 
 @dataclasses.dataclass
@@ -79,6 +213,56 @@ def check_bounded_box(algo: str, space: gym.Space[Any]) -> gym.spaces.Box:
             f"high={space.high}"
         )
     return space
+
+
+@torch.no_grad()
+def adam_step(optimizer: torch.optim.Optimizer) -> None:
+    """``optimizer.step()`` of a fused Adam, with less per-call Python.
+
+    The same kernel (``torch._fused_adam_``) on the same state tensors, so the result is
+    bit for bit ``step()``'s; what it skips is the per-step bookkeeping of
+    ``torch.optim.Adam.step`` (hooks, profiling labels, grouping by device and dtype),
+    which costs as much as the arithmetic for a network of 70k parameters. Optimizers
+    of another kind or setting, and a first step (which creates the state), go through
+    ``step()``.
+    """
+    groups = optimizer.param_groups
+    if not isinstance(optimizer, torch.optim.Adam) or not all(
+        g["fused"] and not g["amsgrad"] and not g["maximize"] and not g["decoupled_weight_decay"]
+        for g in groups
+    ):
+        optimizer.step()
+        return
+    state = optimizer.state
+    todo = []
+    for g in groups:
+        params = [p for p in g["params"] if p.grad is not None]
+        if not all(p in state and "exp_avg" in state[p] for p in params):
+            optimizer.step()
+            return
+        todo.append((g, params))
+    for g, params in todo:
+        if not params:
+            continue
+        st = [state[p] for p in params]
+        steps = [s["step"] for s in st]
+        torch._foreach_add_(steps, 1)
+        beta1, beta2 = g["betas"]
+        torch._fused_adam_(
+            params,
+            [p.grad for p in params],
+            [s["exp_avg"] for s in st],
+            [s["exp_avg_sq"] for s in st],
+            [],
+            steps,
+            amsgrad=False,
+            lr=g["lr"],
+            beta1=beta1,
+            beta2=beta2,
+            weight_decay=g["weight_decay"],
+            eps=g["eps"],
+            maximize=False,
+        )
 
 
 class OffPolicyAgent(Agent):
@@ -168,16 +352,19 @@ class OffPolicyAgent(Agent):
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """One Adam step of the twin critics on their loss toward ``targets``.
 
+        The critics' forward and backward passes are written out by hand
+        (:func:`twin_q_forward`, :func:`twin_q_backward`), from the loss's own gradient
+        (:func:`~policylab.deep.common.losses.twin_q_loss_grad`): no autograd graph.
+
         Returns:
             The loss and (2, B) Q_1(S, A), Q_2(S, A), both detached.
         """
-        q = self.critic(obs, actions)
+        q, cache = twin_q_forward(self.critic, obs, actions)
         loss = twin_q_loss(q, targets)
-        self.critic_optimizer.zero_grad(set_to_none=True)
-        loss.backward()  # type: ignore[no-untyped-call]
+        twin_q_backward(cache, twin_q_loss_grad(q, targets))
         self._clip_grads(self._critic_params)
-        self.critic_optimizer.step()
-        return loss.detach(), q.detach()
+        adam_step(self.critic_optimizer)
+        return loss, q
 
     def _critic_constant(
         self, obs: torch.Tensor, actions: torch.Tensor, first_only: bool = False

@@ -11,8 +11,21 @@ import torch
 from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
 from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
-from policylab.deep.common.off_policy import OffPolicyAgent, OffPolicyConfig, Tensors
-from policylab.deep.sac.losses import entropy_coef_loss, sac_actor_loss
+from policylab.deep.common.mlp_grad import mlp_backward, mlp_forward, mlp_layers
+from policylab.deep.common.off_policy import (
+    OffPolicyAgent,
+    OffPolicyConfig,
+    Tensors,
+    adam_step,
+    twin_q_backward,
+    twin_q_forward,
+)
+from policylab.deep.sac.losses import (
+    entropy_coef_loss_grad,
+    sac_actor_loss,
+    sac_actor_loss_grad,
+    squashed_gaussian_grad,
+)
 from policylab.deep.sac.networks import SquashedGaussianActor
 from policylab.exceptions import InvalidArgumentError
 
@@ -84,6 +97,14 @@ class SAC(OffPolicyAgent):
     Both losses use alpha from before this step, as in Stable-Baselines3, so the order
     of the alpha step does not change the result.
 
+    The update builds no autograd graph: the actor's MLP is backpropagated by
+    :func:`~policylab.deep.common.mlp_grad.mlp_backward`, the critics by
+    :func:`~policylab.deep.common.off_policy.twin_q_backward`, and each loss has its
+    gradient written next to it (``twin_q_loss_grad``, ``sac_actor_loss_grad``,
+    ``squashed_gaussian_grad``, ``entropy_coef_loss_grad``); the parameters after an
+    update equal those of the same update through autograd, to float rounding. The
+    policy runs at S and S' as one batch of 2B rows.
+
     Actions are tanh outputs rescaled to the bounds of the env's ``Box`` action space.
 
     Example:
@@ -104,6 +125,9 @@ class SAC(OffPolicyAgent):
         )
         self._build_critics()
         self._actor_params = list(self.actor.parameters())
+        layers = mlp_layers(self.actor.net)
+        assert layers is not None  # an ActorMLP is a plain MLP
+        self._actor_layers = layers
         self._target_params = list(self.critic_target.parameters())
         lr = cfg.learning_rate
         alpha0, self.learn_alpha = _initial_alpha(cfg.ent_coef)
@@ -138,33 +162,46 @@ class SAC(OffPolicyAgent):
     def _train_step(self, batch: ReplayBatch) -> Tensors:
         cfg = self.config
         obs, actions, rewards, next_obs, discounts = self._batch_tensors(batch)
+        b = len(obs)
         stats: Tensors = {}
+        alpha = self.log_alpha.detach().exp()  # alpha before this step
 
-        # the policy's actions and log-probabilities at S, and alpha before this step
-        actions_pi, log_prob = self.actor.sample(obs, self.torch_gen)
-        assert log_prob is not None
-        alpha = self.log_alpha.detach().exp()
+        # Every network's forward and backward pass is written out (mlp_grad for the
+        # actor, twin_q_forward/backward for the critics) and every loss's gradient is
+        # its own tested function: no autograd graph. The policy at S and S' in one pass.
+        features, inputs = mlp_forward(
+            self._actor_layers, cfg.activation, torch.cat([obs, next_obs])
+        )
+        all_actions, all_log_prob, noise, in_range = self.actor.reparameterised(
+            features, self.torch_gen
+        )
+        actions_pi, log_prob = all_actions[:b], all_log_prob[:b]
 
         # 1. the critics, toward the soft clipped double-Q target
-        with torch.no_grad():
-            next_actions, next_log_prob = self.actor.sample(next_obs, self.torch_gen)
-            assert next_log_prob is not None
-            next_q = self.critic_target(next_obs, next_actions)
-            y = clipped_double_q_targets(rewards, discounts, next_q, next_log_prob, alpha)
+        next_q = twin_q_forward(self.critic_target, next_obs, all_actions[b:])[0]
+        y = clipped_double_q_targets(rewards, discounts, next_q, all_log_prob[b:], alpha)
         critic_loss, q = self._critic_step(obs, actions, y)
 
-        # 2. the actor, through the updated critics with their weights held constant, and
-        # 3. alpha (its loss reaches log alpha only: log pi is held constant in it)
-        actor_loss = sac_actor_loss(log_prob, self._critic_constant(obs, actions_pi), alpha)
-        loss = actor_loss
+        # 2. the actor, through the updated critics with their weights held constant:
+        # dJ/dQ, then dJ/da = dJ/dQ dQ/da through the critics, then through the squash
+        q_pi, cache = twin_q_forward(self.critic, obs, actions_pi)
+        actor_loss = sac_actor_loss(log_prob, q_pi, alpha)
+        grad_log_prob, grad_q = sac_actor_loss_grad(log_prob, q_pi, alpha)
+        grad_action = twin_q_backward(cache, grad_q, param_grads=False, action_grad=True)
+        assert grad_action is not None
+        grad_mean, grad_log_std = squashed_gaussian_grad(
+            actions_pi, noise[:b], grad_action, grad_log_prob
+        )
+        grad_features = torch.cat([grad_mean, grad_log_std * in_range[:b]], 1)
+        mlp_backward(self._actor_layers, cfg.activation, [h[:b] for h in inputs], grad_features)
         if self.learn_alpha:
-            alpha_loss = entropy_coef_loss(self.log_alpha, log_prob, self.target_entropy)
-            loss = actor_loss + alpha_loss
-            stats["ent_coef_loss"] = alpha_loss.detach()
-        self.actor_optimizer.zero_grad(set_to_none=True)
-        loss.backward()  # type: ignore[no-untyped-call]
+            # 3. alpha (its loss reaches log alpha only: log pi is held constant in it)
+            grad_log_alpha = entropy_coef_loss_grad(log_prob, self.target_entropy)
+            # J(alpha) is linear in log alpha: J = log alpha * dJ/dlog alpha
+            stats["ent_coef_loss"] = self.log_alpha.detach() * grad_log_alpha
+            self.log_alpha.grad = grad_log_alpha
         self._clip_grads(self._actor_params)
-        self.actor_optimizer.step()
+        adam_step(self.actor_optimizer)
 
         # 4. the target critics
         self.n_updates += 1
@@ -172,10 +209,10 @@ class SAC(OffPolicyAgent):
             polyak_update(self._target_params, self._critic_params, cfg.tau)
         stats.update(
             critic_loss=critic_loss,
-            actor_loss=actor_loss.detach(),
+            actor_loss=actor_loss,
             q_mean=q.mean(),
             ent_coef=alpha,
-            entropy=-log_prob.detach().mean(),
+            entropy=-log_prob.mean(),
         )
         return stats
 

@@ -11,7 +11,14 @@ import math
 import torch
 from torch.nn import functional
 
-__all__ = ["entropy_coef_loss", "sac_actor_loss", "squashed_gaussian_log_prob"]
+__all__ = [
+    "entropy_coef_loss",
+    "entropy_coef_loss_grad",
+    "sac_actor_loss",
+    "sac_actor_loss_grad",
+    "squashed_gaussian_grad",
+    "squashed_gaussian_log_prob",
+]
 
 _LOG_2PI = math.log(2 * math.pi)
 _LOG_2 = math.log(2.0)
@@ -38,6 +45,40 @@ def squashed_gaussian_log_prob(
     return (gaussian - log_det).sum(dim=-1)
 
 
+def squashed_gaussian_grad(
+    action: torch.Tensor,
+    noise: torch.Tensor,
+    grad_action: torch.Tensor,
+    grad_log_prob: torch.Tensor,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Backpropagate through a reparameterised sample and its :func:`squashed_gaussian_log_prob`.
+
+    For a = tanh(u), u = mean + sigma eps (sigma = exp(log_std), eps fixed) and
+    log pi(a | s) of the change of variables, a loss L with upstream gradients
+    dL/da and dL/dlog pi has
+
+        dL/du = dL/da (1 - a^2) + dL/dlog pi * 2 a,
+        dL/dmean = dL/du,
+        dL/dlog_std = dL/du * sigma eps - dL/dlog pi,
+
+    since the Gaussian term -z^2 / 2 - log_std - log(2 pi) / 2 has z = (u - mean) /
+    sigma = eps whatever mean and log_std are (only -log_std moves), and
+    d/du [-log(1 - tanh(u)^2)] = 2 tanh(u).
+
+    Args:
+        action: (B, m) a = tanh(u).
+        noise: (B, m) sigma eps.
+        grad_action: (B, m) dL/da.
+        grad_log_prob: (B,) dL/dlog pi(a | s).
+
+    Returns:
+        (dL/dmean, dL/dlog_std), each (B, m).
+    """
+    g_lp = grad_log_prob.unsqueeze(-1)
+    grad_u = grad_action * (1.0 - action * action) + 2.0 * g_lp * action
+    return grad_u, grad_u * noise - g_lp
+
+
 def sac_actor_loss(
     log_prob: torch.Tensor, q: torch.Tensor, alpha: float | torch.Tensor
 ) -> torch.Tensor:
@@ -48,7 +89,30 @@ def sac_actor_loss(
         q: (2, B) Q_1(s, a) and Q_2(s, a).
         alpha: The entropy temperature.
     """
-    return (alpha * log_prob - q.min(dim=0).values).mean()
+    # amin: its backward is a mask (min's scatters into zeros, several times slower)
+    return (alpha * log_prob - q.amin(dim=0)).mean()
+
+
+def sac_actor_loss_grad(
+    log_prob: torch.Tensor, q: torch.Tensor, alpha: float | torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The gradient of :func:`sac_actor_loss` with respect to log pi and the critics' values.
+
+    dJ/dlog pi(a_b | s_b) = alpha / B;  dJ/dQ_i(s_b, a_b) = -1 / B for the smaller of
+    the two values (the first on a tie), 0 for the other.
+
+    Args:
+        log_prob: (B,) log pi(a | s).
+        q: (2, B) Q_1(s, a) and Q_2(s, a).
+        alpha: The entropy temperature.
+
+    Returns:
+        (dJ/dlog pi, (B,); dJ/dQ, (2, B)).
+    """
+    b = q.shape[1]
+    first = q[0] <= q[1]
+    grad_q = torch.stack([first, ~first]).to(q.dtype) * (-1.0 / b)
+    return torch.full_like(log_prob, 1.0 / b) * alpha, grad_q
 
 
 def entropy_coef_loss(
@@ -66,3 +130,13 @@ def entropy_coef_loss(
         target_entropy: H_target (-m, the action dimension, by default).
     """
     return -(log_alpha * (log_prob.detach() + target_entropy)).mean()
+
+
+def entropy_coef_loss_grad(log_prob: torch.Tensor, target_entropy: float) -> torch.Tensor:
+    """The gradient of :func:`entropy_coef_loss` in log alpha: -E[ log pi(a | s) + H_target ].
+
+    Args:
+        log_prob: (B,) log pi(a | s).
+        target_entropy: H_target.
+    """
+    return -(log_prob.mean() + target_entropy)

@@ -34,7 +34,12 @@ class SquashedGaussianActor(ActorMLP):
 
     def distribution(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(mu, log sigma) for a batch, each (B, m), log sigma clipped to [-20, 2]."""
-        mean, log_std = self.features(obs).chunk(2, dim=-1)
+        return self.split(self.features(obs))
+
+    @staticmethod
+    def split(features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(mu, log sigma) from the MLP's (B, 2m) outputs, log sigma clipped to [-20, 2]."""
+        mean, log_std = features.chunk(2, dim=-1)
         return mean, log_std.clamp(LOG_STD_MIN, LOG_STD_MAX)
 
     def sample(
@@ -44,9 +49,29 @@ class SquashedGaussianActor(ActorMLP):
 
         The log-probability is None with ``log_prob=False`` (acting does not need it).
         """
-        mean, log_std = self.distribution(obs)
-        u = mean + log_std.exp() * torch.randn(mean.shape, generator=generator)
-        return torch.tanh(u), squashed_gaussian_log_prob(u, mean, log_std) if log_prob else None
+        features = self.features(obs)
+        if log_prob:
+            action, logp, _, _ = self.reparameterised(features, generator)
+            return action, logp
+        mean, log_std = self.split(features)
+        return torch.tanh(mean + log_std.exp() * torch.randn(mean.shape, generator=generator)), None
+
+    @classmethod
+    def reparameterised(
+        cls, features: torch.Tensor, generator: torch.Generator | None
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """:meth:`sample` from the MLP's (B, 2m) outputs, with what its gradient needs.
+
+        Returns:
+            a (B, m); log pi(a | s) (B,); the noise sigma eps (B, m); and (B, m) whether
+            each raw log sigma lies inside the clipping range (where it has a gradient).
+        """
+        mean, raw = features.chunk(2, dim=-1)
+        log_std = raw.clamp(LOG_STD_MIN, LOG_STD_MAX)
+        noise = log_std.exp() * torch.randn(mean.shape, generator=generator)
+        u = mean + noise
+        in_range = log_std == raw  # clipping leaves exactly these unchanged
+        return torch.tanh(u), squashed_gaussian_log_prob(u, mean, log_std), noise, in_range
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         """The deterministic action tanh(mu(s)), (B, m)."""

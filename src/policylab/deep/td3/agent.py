@@ -11,8 +11,21 @@ import torch
 from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
 from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
-from policylab.deep.common.off_policy import OffPolicyAgent, OffPolicyConfig, Tensors
-from policylab.deep.td3.losses import smoothed_target_actions, td3_actor_loss
+from policylab.deep.common.mlp_grad import (
+    _activation_backward,
+    mlp_backward,
+    mlp_forward,
+    mlp_layers,
+)
+from policylab.deep.common.off_policy import (
+    OffPolicyAgent,
+    OffPolicyConfig,
+    Tensors,
+    adam_step,
+    twin_q_backward,
+    twin_q_forward,
+)
+from policylab.deep.td3.losses import smoothed_target_actions, td3_actor_loss, td3_actor_loss_grad
 from policylab.deep.td3.networks import DeterministicActor
 
 __all__ = ["TD3", "TD3Config"]
@@ -57,6 +70,12 @@ class TD3(OffPolicyAgent):
        critic's weights held constant, so their gradients are never computed), then
        Polyak updates of the target actor and critics.
 
+    Each update builds no autograd graph: the actors' MLPs go through
+    :mod:`~policylab.deep.common.mlp_grad`, the critics through
+    :func:`~policylab.deep.common.off_policy.twin_q_backward`, from the losses'
+    gradients (``twin_q_loss_grad``, ``td3_actor_loss_grad``); the parameters after an
+    update equal those of the same update through autograd, to float rounding.
+
     Exploration adds N(0, action_noise^2) to mu(s) (clipped to [-1, 1]); actions are
     rescaled to the bounds of the env's ``Box`` action space.
 
@@ -79,6 +98,9 @@ class TD3(OffPolicyAgent):
         self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)
         self._build_critics()
         self._actor_params = list(self.actor.parameters())
+        layers, target_layers = mlp_layers(self.actor.net), mlp_layers(self.actor_target.net)
+        assert layers is not None and target_layers is not None  # ActorMLPs are plain MLPs
+        self._actor_layers, self._target_actor_layers = layers, target_layers
         self._online = self._actor_params + self._critic_params
         self._targets = list(self.actor_target.parameters()) + list(self.critic_target.parameters())
         self.actor_optimizer = torch.optim.Adam(
@@ -105,30 +127,35 @@ class TD3(OffPolicyAgent):
     def _train_step(self, batch: ReplayBatch) -> Tensors:
         cfg = self.config
         obs, actions, rewards, next_obs, discounts = self._batch_tensors(batch)
+        act = cfg.activation
 
+        # Every forward and backward pass is written out, as in SAC (no autograd graph).
         # 1. the critics, toward the clipped double-Q target of the smoothed target action
-        with torch.no_grad():
-            noise = cfg.target_policy_noise * torch.randn(actions.shape, generator=self.torch_gen)
-            next_actions = smoothed_target_actions(
-                self.actor_target(next_obs), noise, cfg.target_noise_clip
-            )
-            y = clipped_double_q_targets(
-                rewards, discounts, self.critic_target(next_obs, next_actions)
-            )
+        noise = cfg.target_policy_noise * torch.randn(actions.shape, generator=self.torch_gen)
+        target_mu = torch.tanh(mlp_forward(self._target_actor_layers, act, next_obs)[0])
+        next_actions = smoothed_target_actions(target_mu, noise, cfg.target_noise_clip)
+        y = clipped_double_q_targets(
+            rewards, discounts, twin_q_forward(self.critic_target, next_obs, next_actions)[0]
+        )
         critic_loss, q = self._critic_step(obs, actions, y)
         self.n_updates += 1
         stats: Tensors = {"critic_loss": critic_loss, "q_mean": q.mean()}
 
         # 2. delayed: the actor through Q_1 with the critic's weights constant, then targets
         if self.n_updates % cfg.policy_delay == 0:
-            q1 = self._critic_constant(obs, self.actor(obs), first_only=True)[0]
-            actor_loss = td3_actor_loss(q1)
-            self.actor_optimizer.zero_grad(set_to_none=True)
-            actor_loss.backward()  # type: ignore[no-untyped-call]
+            features, inputs = mlp_forward(self._actor_layers, act, obs)
+            mu = torch.tanh(features)
+            q1, cache = twin_q_forward(self.critic, obs, mu, [p[:1] for p in self._critic_params])
+            grad_mu = twin_q_backward(
+                cache, td3_actor_loss_grad(q1), param_grads=False, action_grad=True
+            )
+            assert grad_mu is not None
+            grad_features = _activation_backward(grad_mu, mu, "tanh")
+            mlp_backward(self._actor_layers, act, inputs, grad_features)
             self._clip_grads(self._actor_params)
-            self.actor_optimizer.step()
+            adam_step(self.actor_optimizer)
             polyak_update(self._targets, self._online, cfg.tau)
-            stats["actor_loss"] = actor_loss.detach()
+            stats["actor_loss"] = td3_actor_loss(q1[0])
         return stats
 
     def _network_state(self, training_state: bool) -> dict[str, Any]:

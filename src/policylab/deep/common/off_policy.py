@@ -29,7 +29,7 @@ from policylab.deep.common.buffers import NStepWindow, ReplayBatch, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check_replay_settings, option
 from policylab.deep.common.losses import twin_q_loss, twin_q_loss_grad
-from policylab.deep.common.mlp_grad import _activation_backward
+from policylab.deep.common.mlp_grad import activation_backward, fused_adam_step
 from policylab.deep.common.networks import TwinQNetwork, clip_grad_norm
 from policylab.exceptions import InvalidArgumentError, NonFiniteError
 from policylab.validation import fmt_number
@@ -39,7 +39,6 @@ __all__ = [
     "OffPolicyConfig",
     "Tensors",
     "TwinQCache",
-    "adam_step",
     "check_bounded_box",
     "twin_q_backward",
     "twin_q_forward",
@@ -154,13 +153,13 @@ def twin_q_backward(
         torch.sum(dq, 1, keepdim=True, out=_grad_buffer(bs[n - 1]).view(k, 1))
         out = _grad_buffer(ws[n]).view(k, 1, -1)
         torch.bmm(dq.unsqueeze(1), h, out=out)
-    g = _activation_backward(dq.unsqueeze(-1) * ws[n].reshape(k, 1, -1), h, act)
+    g = activation_backward(dq.unsqueeze(-1) * ws[n].reshape(k, 1, -1), h, act)
     for i in range(len(hidden) - 2, -1, -1):  # the layer after hidden[i]: ws[i + 2], bs[i + 1]
         h_in = hidden[i]
         if param_grads:
             torch.sum(g, 1, keepdim=True, out=_grad_buffer(bs[i + 1]))
             torch.bmm(h_in.transpose(1, 2), g, out=_grad_buffer(ws[i + 2]))
-        g = _activation_backward(torch.bmm(g, ws[i + 2].transpose(1, 2)), h_in, act)
+        g = activation_backward(torch.bmm(g, ws[i + 2].transpose(1, 2)), h_in, act)
     if param_grads:
         d_in = torch.bmm(cache.x.t().unsqueeze(0).expand(k, -1, -1), g)
         n_obs, n_act = ws[0].shape[1], ws[1].shape[1]
@@ -213,56 +212,6 @@ def check_bounded_box(algo: str, space: gym.Space[Any]) -> gym.spaces.Box:
             f"high={space.high}"
         )
     return space
-
-
-@torch.no_grad()
-def adam_step(optimizer: torch.optim.Optimizer) -> None:
-    """``optimizer.step()`` of a fused Adam, with less per-call Python.
-
-    The same kernel (``torch._fused_adam_``) on the same state tensors, so the result is
-    bit for bit ``step()``'s; what it skips is the per-step bookkeeping of
-    ``torch.optim.Adam.step`` (hooks, profiling labels, grouping by device and dtype),
-    which costs as much as the arithmetic for a network of 70k parameters. Optimizers
-    of another kind or setting, and a first step (which creates the state), go through
-    ``step()``.
-    """
-    groups = optimizer.param_groups
-    if not isinstance(optimizer, torch.optim.Adam) or not all(
-        g["fused"] and not g["amsgrad"] and not g["maximize"] and not g["decoupled_weight_decay"]
-        for g in groups
-    ):
-        optimizer.step()
-        return
-    state = optimizer.state
-    todo = []
-    for g in groups:
-        params = [p for p in g["params"] if p.grad is not None]
-        if not all(p in state and "exp_avg" in state[p] for p in params):
-            optimizer.step()
-            return
-        todo.append((g, params))
-    for g, params in todo:
-        if not params:
-            continue
-        st = [state[p] for p in params]
-        steps = [s["step"] for s in st]
-        torch._foreach_add_(steps, 1)
-        beta1, beta2 = g["betas"]
-        torch._fused_adam_(
-            params,
-            [p.grad for p in params],
-            [s["exp_avg"] for s in st],
-            [s["exp_avg_sq"] for s in st],
-            [],
-            steps,
-            amsgrad=False,
-            lr=g["lr"],
-            beta1=beta1,
-            beta2=beta2,
-            weight_decay=g["weight_decay"],
-            eps=g["eps"],
-            maximize=False,
-        )
 
 
 class OffPolicyAgent(Agent):
@@ -363,7 +312,7 @@ class OffPolicyAgent(Agent):
         loss = twin_q_loss(q, targets)
         twin_q_backward(cache, twin_q_loss_grad(q, targets))
         self._clip_grads(self._critic_params)
-        adam_step(self.critic_optimizer)
+        fused_adam_step(self.critic_optimizer)
         return loss, q
 
     def _critic_constant(

@@ -11,12 +11,11 @@ import torch
 from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
 from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
-from policylab.deep.common.mlp_grad import mlp_backward, mlp_forward, mlp_layers
+from policylab.deep.common.mlp_grad import fused_adam_step, mlp_backward, mlp_forward, mlp_layers
 from policylab.deep.common.off_policy import (
     OffPolicyAgent,
     OffPolicyConfig,
     Tensors,
-    adam_step,
     twin_q_backward,
     twin_q_forward,
 )
@@ -201,7 +200,7 @@ class SAC(OffPolicyAgent):
             stats["ent_coef_loss"] = self.log_alpha.detach() * grad_log_alpha
             self.log_alpha.grad = grad_log_alpha
         self._clip_grads(self._actor_params)
-        adam_step(self.actor_optimizer)
+        fused_adam_step(self.actor_optimizer)
 
         # 4. the target critics
         self.n_updates += 1

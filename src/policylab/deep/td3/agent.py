@@ -12,7 +12,8 @@ from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
 from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
 from policylab.deep.common.mlp_grad import (
-    _activation_backward,
+    activation_backward,
+    fused_adam_step,
     mlp_backward,
     mlp_forward,
     mlp_layers,
@@ -21,7 +22,6 @@ from policylab.deep.common.off_policy import (
     OffPolicyAgent,
     OffPolicyConfig,
     Tensors,
-    adam_step,
     twin_q_backward,
     twin_q_forward,
 )
@@ -150,10 +150,10 @@ class TD3(OffPolicyAgent):
                 cache, td3_actor_loss_grad(q1), param_grads=False, action_grad=True
             )
             assert grad_mu is not None
-            grad_features = _activation_backward(grad_mu, mu, "tanh")
+            grad_features = activation_backward(grad_mu, mu, "tanh")
             mlp_backward(self._actor_layers, act, inputs, grad_features)
             self._clip_grads(self._actor_params)
-            adam_step(self.actor_optimizer)
+            fused_adam_step(self.actor_optimizer)
             polyak_update(self._targets, self._online, cfg.tau)
             stats["actor_loss"] = td3_actor_loss(q1[0])
         return stats

@@ -145,7 +145,9 @@ def connect(
         if address is not None:
             ray.init(address=address, **kwargs)
         else:
-            ray.init(num_cpus=num_cpus, include_dashboard=False, **kwargs)
+            # "local": always a fresh Ray in this process, even where RAY_ADDRESS or an
+            # earlier `ray start` on this machine would make ray.init join that one
+            ray.init(address="local", num_cpus=num_cpus, include_dashboard=False, **kwargs)
     except ConnectionError as e:
         raise InvalidArgumentError(
             f"cannot join the Ray cluster at {address!r}: {' '.join(str(e).split())}"

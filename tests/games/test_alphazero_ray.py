@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import os
 import signal
-import threading
 import time
 
 import numpy as np
@@ -18,7 +17,7 @@ import pytest
 from tests.games.test_alphazero import TINY as SMOKE
 
 from policylab.exceptions import InvalidArgumentError, TrainingInterrupted
-from policylab.games.alphazero import default_config, train_alphazero
+from policylab.games.alphazero import _RayWorkers, default_config, train_alphazero
 
 pytest.importorskip("torch")
 ray = pytest.importorskip("ray")
@@ -42,16 +41,29 @@ def ray_run(tmp_path_factory):
     before = signal.getsignal(signal.SIGTERM)
     run = tmp_path_factory.mktemp("az") / "ray"
     cpus = []
+    plays = []
+    play = _RayWorkers.play
 
     def on_iteration(done, total, metrics):
         cpus.append(ray.cluster_resources().get("CPU"))
-        # the signal lands while the second iteration's tasks start or run
-        threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGTERM)).start()
+
+    def play_and_signal(self, args, chunks, poll):
+        """The second iteration's play: SIGTERM while its tasks run (not on a timer)."""
+        plays.append(len(plays) + 1)
+
+        def poll_and_signal():
+            if len(plays) == 2:
+                os.kill(os.getpid(), signal.SIGTERM)  # the run sees it in this poll
+            poll()
+
+        return play(self, args, chunks, poll_and_signal)
 
     cfg = default_config("tic-tac-toe", **{**TINY, "iterations": 2, "workers": 2})
-    with pytest.raises(TrainingInterrupted) as stop:
-        train_alphazero("tic-tac-toe", run, cfg, backend="ray", on_iteration=on_iteration)
-    time.sleep(0.1)  # the timer has fired
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(_RayWorkers, "play", play_and_signal)
+        with pytest.raises(TrainingInterrupted) as stop:
+            train_alphazero("tic-tac-toe", run, cfg, backend="ray", on_iteration=on_iteration)
+    assert plays == [1, 2]  # stopped in the second iteration's play
     return {
         "run": run,
         "stop": stop.value,

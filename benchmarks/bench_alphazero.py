@@ -4,12 +4,13 @@ The check is exhaustive: every line of play of the perfect player (each of its o
 moves at every turn) and of any opponent at all (every legal move), with the trained
 network moving first and second; a result of 0 means it never loses.
 
-Run: ``python benchmarks/bench_alphazero.py [RUN_DIR]`` (trains into RUN_DIR, default
-``runs/bench-alphazero-ttt``, unless it already holds a finished run).
+Run: ``python benchmarks/bench_alphazero.py [--seeds 0,1,2,3,4] [--out DIR]`` (trains one
+run per seed into DIR/seed-K, default ``runs/bench-alphazero-ttt``, unless it already
+holds a finished run; ``--help`` lists the options).
 
 Connect Four (a run of hours on a laptop CPU, so not run by ``make bench``): train with
 ``policylab train alphazero connect-four --out runs/az-c4``, then
-``python benchmarks/bench_alphazero.py --connect-four runs/az-c4 [GAMES]`` plays GAMES
+``python benchmarks/bench_alphazero.py --connect-four runs/az-c4 [--games GAMES]`` plays GAMES
 (default 100; fewer is a trial, not recorded) games each against UCT with 100 and 1000
 simulations (colours alternating, AlphaZero's searches batched across the games) and
 measures the share of its moves that the exact solver rates optimal, over a seeded
@@ -18,6 +19,7 @@ sample of 300 of its moves with 20 or more stones on the board in those games.
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -106,44 +108,98 @@ def connect_four(run: Path, games: int = 100, positions: int = 300) -> None:
         )
 
 
-def main() -> None:
-    if len(sys.argv) > 2 and sys.argv[1] == "--connect-four":
-        games = int(sys.argv[3]) if len(sys.argv) > 3 else 100
-        connect_four(Path(sys.argv[2]), games)
-        return
-    run = Path(sys.argv[1] if len(sys.argv) > 1 else "runs/bench-alphazero-ttt")
+def _tic_tac_toe_seed(run: Path, seed: int) -> tuple[str, bool, float]:
+    """Train (unless ``run`` holds a finished run) and check one seed; a table row."""
+    cfg = default_config("tic-tac-toe", seed=seed)
+    t0 = time.perf_counter()
+    if not (run / "run.json").exists():
+        train_alphazero("tic-tac-toe", run, cfg)
+    minutes = (time.perf_counter() - t0) / 60
+    player = make_player(str(run), TIC_TAC_TOE)
+    worst = []
+    for me in (0, 1):
+        worst.append(worst_outcome(player, TIC_TAC_TOE.initial(), me, best_moves))
+        worst.append(worst_outcome(player, TIC_TAC_TOE.initial(), me, lambda s: s.legal_actions()))
+    res = arena(TIC_TAC_TOE, player, make_player("mcts:200", TIC_TAC_TOE, 0), 100)
+    cells = " | ".join(f"{w:+.0f}" for w in worst)
+    row = f"| {seed} | {cells} | {res.wins}-{res.draws}-{res.losses} | {minutes:.1f} |"
+    print(row, flush=True)
+    return row, min(worst) >= 0, minutes
+
+
+def tic_tac_toe(out: Path, seeds: list[int]) -> None:
+    """AlphaZero's tic-tac-toe defaults over several seeds, each checked exhaustively."""
     load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     cfg = default_config("tic-tac-toe")
-    t0 = time.perf_counter()
-    trained_here = not (run / "run.json").exists()
-    if trained_here:
-        train_alphazero("tic-tac-toe", run, cfg)
-    seconds = time.perf_counter() - t0
-    doc = json.loads((run / "run.json").read_text())
-    player = make_player(str(run), TIC_TAC_TOE)
-    rows = []
-    for me, side in ((0, "first (X)"), (1, "second (O)")):
-        vs_perfect = worst_outcome(player, TIC_TAC_TOE.initial(), me, best_moves)
-        vs_any = worst_outcome(player, TIC_TAC_TOE.initial(), me, lambda s: s.legal_actions())
-        rows.append(f"| {side} | {vs_perfect:+.0f} | {vs_any:+.0f} |")
-        print(side, vs_perfect, vs_any, flush=True)
-    res = arena(TIC_TAC_TOE, player, make_player("mcts:200", TIC_TAC_TOE, 0), 100)
+    results = [_tic_tac_toe_seed(out / f"seed-{seed}", seed) for seed in seeds]
     load_after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    how = f"trained here in {seconds / 60:.1f} min" if trained_here else "an existing run"
+    never = sum(ok for _, ok, _ in results)
     body = (
-        f"AlphaZero on tic-tac-toe with the default settings ({doc['config']['iterations']} "
-        f"iterations of {doc['config']['games_per_iteration']} self-play games, "
-        f"{doc['config']['simulations']} PUCT simulations per move, a new network kept when it "
-        f"scores at least {doc['config']['accept_score']} against the best; {how}). "
-        "Worst result over every line of play (exhaustive), -1 a loss, 0 a draw:\n\n"
-        "| AlphaZero moves | against every line of perfect play | against every opponent |\n"
-        "|---|---:|---:|\n" + "\n".join(rows) + "\n\n"
-        f"Against UCT with 200 random-rollout simulations, 100 games, colours alternating: "
-        f"{res.wins} wins, {res.draws} draws, {res.losses} losses.\n\n"
+        f"AlphaZero on tic-tac-toe with the default settings ({cfg.iterations} iterations of "
+        f"{cfg.games_per_iteration} self-play games, {cfg.simulations} PUCT simulations per "
+        f"move, a new network kept when it scores at least {cfg.accept_score} against the "
+        f"best), one run per seed. Worst result over every line of play (exhaustive), -1 a "
+        "loss, 0 a draw, of the perfect player (its optimal moves only) and of any opponent "
+        "(every legal move), with AlphaZero moving first (X) and second (O); then 100 games "
+        "against UCT with 200 random-rollout simulations, colours alternating "
+        "(wins-draws-losses); training time in minutes of wall clock (0.0: an existing run "
+        "was checked):\n\n"
+        "| seed | X vs perfect | X vs any | O vs perfect | O vs any | vs UCT-200 | minutes |\n"
+        "|---:|---:|---:|---:|---:|---|---:|\n"
+        + "\n".join(row for row, _, _ in results)
+        + f"\n\n{never} of {len(seeds)} seeds never lose with either colour. Training is "
+        "deterministic on one machine (same seed, same network), but the network's "
+        "floating-point rounding depends on the processor's matrix kernels, so a seed can "
+        "end in a different network on another machine.\n\n"
         f"Load (`uptime`) before: `{load}`; after: `{load_after}` (a shared 2-core machine)."
     )
-    write_section("AlphaZero (tic-tac-toe)", "python benchmarks/bench_alphazero.py", body)
+    command = "python benchmarks/bench_alphazero.py"
+    if seeds != list(range(5)):
+        command += f" --seeds {','.join(map(str, seeds))}"
+    write_section("AlphaZero (tic-tac-toe)", command, body)
     print(body)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description="AlphaZero on tic-tac-toe (train with the defaults for each seed, then "
+        "check each network exhaustively against perfect play and any opponent) or, with "
+        "--connect-four RUN_DIR, an existing Connect Four run against UCT."
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("runs/bench-alphazero-ttt"),
+        help="Folder of the tic-tac-toe runs, one subfolder per seed; a finished run there "
+        "is checked, not trained again (default: runs/bench-alphazero-ttt).",
+    )
+    parser.add_argument(
+        "--seeds",
+        default="0,1,2,3,4",
+        help="Comma-separated seeds of the tic-tac-toe runs (default: 0,1,2,3,4).",
+    )
+    parser.add_argument(
+        "--connect-four",
+        type=Path,
+        metavar="RUN_DIR",
+        help="Evaluate this Connect Four run instead (hours to train; not run by make bench).",
+    )
+    parser.add_argument(
+        "--games",
+        type=int,
+        default=100,
+        help="Connect Four games against each opponent (default 100; fewer is a trial, "
+        "not recorded).",
+    )
+    args = parser.parse_args()
+    if args.connect_four is not None:
+        connect_four(args.connect_four, args.games)
+        return
+    try:
+        seeds = [int(x) for x in args.seeds.split(",")]
+    except ValueError:
+        parser.error(f"--seeds must be comma-separated integers; got {args.seeds!r}")
+    tic_tac_toe(args.out, seeds)
 
 
 if __name__ == "__main__":

@@ -134,8 +134,11 @@ def test_trained_tictactoe_network_never_loses_to_perfect_play_as_x_or_o():
     """Every line of the perfect player (each of its optimal moves), AlphaZero first and second.
 
     The network is the best one of a run with the default settings and seed 0, made by
-    ``tests/games/data/make_alphazero_ttt.py``; it plays as ``load_player`` does (the
-    default 50 simulations per move, its most visited move).
+    ``tests/games/data/make_alphazero_ttt.py`` on the machine that wrote it (the rounding
+    of the network's matrix kernels differs between processors, so the same seed can
+    train another network elsewhere: BENCHMARKS.md counts the seeds that never lose); it
+    plays as ``load_player`` does (the default 50 simulations per move, its most visited
+    move).
     """
     from pathlib import Path
 

@@ -96,6 +96,10 @@ def kernel_steps(
             np.zeros((0, 0), dtype=np.int64),
             np.zeros((0, 0)),
             np.zeros(1, dtype=np.int64),
+            np.zeros((0, 0)),
+            np.zeros(0, dtype=np.int64),
+            np.zeros(0, dtype=np.int64),
+            np.zeros(0),
         )
         out = tdk.Episodes(
             np.zeros(episodes),

@@ -58,7 +58,8 @@ How to add a learner
 1. Write each new update as one function in ``rules/td.py`` (``@register_jitable``,
    the equation and its section in the docstring), with a test against a hand value.
 2. A new TD variant of an existing loop: add its rule constant and branch to that loop
-   in ``td_kernels`` (a new loop: same eight arguments, add it to ``run_kernel``).
+   in ``td_kernels`` (a new loop: same eight arguments, ``@episode_loop``, working
+   memory in ``Tables`` rather than allocated, and add it to ``run_kernel``).
 3. Add a ``TDEntry`` to ``TD_ENTRIES`` in ``td.py`` (name, function name, family, the
    title and equation of its docstring, its own ``Option``s with annotation/default),
    then run ``python -m policylab.tabular._generate``: it writes the public function's

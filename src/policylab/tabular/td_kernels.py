@@ -31,7 +31,8 @@ average), exploration rates at n = the episode number.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 
 import numpy as np
 from numba import njit, prange
@@ -57,6 +58,9 @@ from policylab.tabular.rules.td import (
 )
 from policylab.tabular.schedules import schedule_value
 
+if TYPE_CHECKING:
+    from numba.core.dispatcher import Dispatcher
+
 __all__ = [
     "DOUBLE_Q",
     "DYNA",
@@ -76,6 +80,7 @@ __all__ = [
     "Tables",
     "double_q_target",
     "dyna_q_kernel",
+    "episode_loop",
     "expected_sarsa_target",
     "lambda_kernel",
     "many_runs",
@@ -91,6 +96,25 @@ __all__ = [
     "td_target",
     "td_update",
 ]
+
+_F = TypeVar("_F", bound=Callable[..., object])
+
+
+def episode_loop(fn: _F) -> Dispatcher[_F]:
+    """Compile an episode loop: ``njit(cache=True, nogil=True)`` without reference counting.
+
+    numba counts the references to every array a compiled function holds; each
+    array a loop hands to an inlined helper (``epsilon_greedy_at``, ``sample_next``, the
+    RNG draws) then costs an atomic increment and decrement of its count at every step,
+    which numba cannot prune across the helpers' branches: they were more than half the
+    time of a Q-learning step. Compiled without them (numba's ``_nrt=False``), a loop
+    allocates nothing (its working memory comes in :class:`Tables`) and only borrows
+    the arrays its caller keeps alive.
+    """
+    no_reference_counting: dict[str, Any] = {"_nrt": False}  # not in numba's stubs
+    loop: Dispatcher[_F] = njit(fn, cache=True, nogil=True, **no_reference_counting)
+    return loop
+
 
 #: Rules of :func:`one_step_control_kernel`.
 SARSA, Q_LEARNING, EXPECTED_SARSA, DOUBLE_Q = 0, 1, 2, 3
@@ -129,7 +153,9 @@ class Tables(NamedTuple):
     table the behaviour is epsilon-greedy in (``w`` itself, or Q1 + Q2 kept up to date);
     ``counts``: updates of each entry (the step size's n); ``pi``: the (S, A) policy
     evaluated (prediction); ``model_next``, ``model_reward``, ``seen``: Dyna-Q's learned
-    model. Tables a family does not use are empty.
+    model; ``traces``: the eligibility traces e of a lambda method (the shape of ``w``);
+    ``ring_s``, ``ring_a``, ``ring_r``: the n-step methods' last n + 1 states, actions and
+    rewards. Tables a family does not use are empty.
     """
 
     w: Any
@@ -140,6 +166,10 @@ class Tables(NamedTuple):
     model_next: Any
     model_reward: Any
     seen: Any
+    traces: Any
+    ring_s: Any
+    ring_a: Any
+    ring_r: Any
 
 
 class Episodes(NamedTuple):
@@ -178,7 +208,7 @@ def model_tuple(km: Any | None, mask: Any = None) -> Model:
 
 
 # ---------------------------------------------------------------------------- TD(0)
-@njit(cache=True, nogil=True)
+@episode_loop
 def td0_kernel(
     env: Any,
     model: Model,
@@ -225,7 +255,7 @@ def td0_kernel(
 
 
 # ---------------------------------------------------------------------------- one-step control
-@njit(cache=True, nogil=True)
+@episode_loop
 def one_step_control_kernel(
     env: Any,
     model: Model,
@@ -316,7 +346,7 @@ def one_step_control_kernel(
 
 
 # ---------------------------------------------------------------------------- n-step
-@njit(cache=True, nogil=True)
+@episode_loop
 def n_step_kernel(
     env: Any,
     model: Model,
@@ -344,10 +374,8 @@ def n_step_kernel(
     epsilon_params, control, n = settings.epsilon, settings.control, settings.n
     pi, w, counts = tables.pi, tables.w, tables.counts
     n_actions = mask.shape[1]
+    S_buf, A_buf, R_buf = tables.ring_s, tables.ring_a, tables.ring_r
     m = n + 1
-    S_buf = np.zeros(m, dtype=np.int64)
-    A_buf = np.zeros(m, dtype=np.int64)
-    R_buf = np.zeros(m)
     big = np.iinfo(np.int64).max
     steps = 0
     for k in range(k0, k1):
@@ -407,7 +435,7 @@ def n_step_kernel(
 
 
 # ---------------------------------------------------------------------------- eligibility traces
-@njit(cache=True, nogil=True)
+@episode_loop
 def lambda_kernel(
     env: Any,
     model: Model,
@@ -433,7 +461,7 @@ def lambda_kernel(
     lam, trace = settings.lam, settings.trace
     pi, w, counts = tables.pi, tables.w, tables.counts
     n_actions = mask.shape[1]
-    e = np.zeros_like(w)
+    e = tables.traces
     n_rows, n_cols = w.shape
     steps = 0
     for k in range(k0, k1):
@@ -482,7 +510,7 @@ def lambda_kernel(
 
 
 # ---------------------------------------------------------------------------- Dyna-Q
-@njit(cache=True, nogil=True)
+@episode_loop
 def dyna_q_kernel(
     env: Any,
     model: Model,
@@ -558,7 +586,7 @@ def dyna_q_kernel(
 TD0, ONE_STEP, N_STEP, LAMBDA, DYNA = 0, 1, 2, 3, 4
 
 
-@njit(cache=True, nogil=True)
+@episode_loop
 def run_kernel(
     family: int,
     env: Any,
@@ -622,6 +650,10 @@ def many_runs(
             tables.model_next[r],
             tables.model_reward[r],
             tables.seen[r],
+            tables.traces[r],
+            tables.ring_s[r],
+            tables.ring_a[r],
+            tables.ring_r[r],
         )
         run_out = Episodes(out.returns[r], out.lengths[r], out.first_actions[r])
         steps[r] = run_kernel(

@@ -637,10 +637,15 @@ def many_runs(
     run's own xoshiro state. Run r touches only its own slices and its own RNG stream,
     so its numbers are those of the run alone, whatever the number of threads (numba's
     ``prange``; set with ``numba.set_num_threads``). Returns the steps of each run.
+
+    What a run writes at every step and is smaller than a cache line (its RNG state,
+    the n-step rings) is worked on in a copy of its own, so that two threads running
+    neighbouring runs never write to the same cache line (false sharing).
     """
     n_runs = rngs.shape[0]
     steps = np.zeros(n_runs, dtype=np.int64)
     for r in prange(n_runs):
+        rng = rngs[r].copy()
         run_tables = Tables(
             tables.w[r],
             tables.q2[r],
@@ -651,12 +656,11 @@ def many_runs(
             tables.model_reward[r],
             tables.seen[r],
             tables.traces[r],
-            tables.ring_s[r],
-            tables.ring_a[r],
-            tables.ring_r[r],
+            tables.ring_s[r].copy(),
+            tables.ring_a[r].copy(),
+            tables.ring_r[r].copy(),
         )
         run_out = Episodes(out.returns[r], out.lengths[r], out.first_actions[r])
-        steps[r] = run_kernel(
-            family, None, model, run_tables, settings, run_out, rngs[r], 0, episodes
-        )
+        steps[r] = run_kernel(family, None, model, run_tables, settings, run_out, rng, 0, episodes)
+        rngs[r] = rng
     return steps

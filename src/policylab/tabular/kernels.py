@@ -533,50 +533,39 @@ def generate_episode(
 
 
 # ---------------------------------------------------------------------------- the environment
-def env_reset(env: Any, initial: Any, rng: Any) -> int:
+def env_reset(env: Any, model: Model, rng: Any) -> int:
     """S_0: ``env.reset()`` (general path) or a draw from the model's start distribution.
 
-    On the compiled path ``env`` is None and the model's arrays are given (unpacked once
-    per kernel: a tuple read inside the loop would cost reference counting each step).
+    On the compiled path ``env`` is None and ``model`` is sampled with the run's RNG.
     """
     return int(env.reset())
 
 
-def env_step(
-    env: Any,
-    s: int,
-    a: int,
-    rng: Any,
-    indptr: Any,
-    next_states: Any,
-    cdf: Any,
-    rewards: Any,
-    terminal: Any,
-    n_actions: int,
-) -> tuple[int, float, bool, bool]:
+def env_step(env: Any, model: Model, s: int, a: int, rng: Any) -> tuple[int, float, bool, bool]:
     """(S_{t+1}, R_{t+1}, terminated, truncated) after A_t = a in S_t = s.
 
     General path: ``env.step(a)``. Compiled path (``env`` None): one outcome of row
-    ``s * A + a`` of the outcome table drawn with the shared ``sample_next``.
+    ``s * A + a`` of the model's outcome table, drawn with :func:`sample_next` (inlined
+    into the episode loops).
     """
     return env.step(a)  # type: ignore[no-any-return]
 
 
-@overload(env_reset)
-def _env_reset_model(env, initial, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
+@overload(env_reset, inline="always")
+def _env_reset_model(env, model, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
     if isinstance(env, types.NoneType):
-        return lambda env, initial, rng: sample_start(initial, rng)
+        return lambda env, model, rng: sample_start(model.initial, rng)
     return None
 
 
-@overload(env_step)
-def _env_step_model(env, s, a, rng, indptr, next_states, cdf, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]  # pragma: no cover
+@overload(env_step, inline="always")
+def _env_step_model(env, model, s, a, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
     if isinstance(env, types.NoneType):
 
-        def impl(env, s, a, rng, indptr, next_states, cdf, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]
-            k = sample_next(indptr, cdf, s * n_actions + a, rng)
-            nxt = int(next_states[k])
-            return nxt, float(rewards[k]), bool(terminal[nxt]), False
+        def impl(env, model, s, a, rng):  # type: ignore[no-untyped-def]
+            o = sample_next(model.indptr, model.cdf, s * model.mask.shape[1] + a, rng)
+            s2 = model.next_states[o]
+            return s2, model.rewards[o], model.terminal[s2], False
 
         return impl
     return None

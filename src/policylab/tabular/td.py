@@ -377,7 +377,7 @@ class _Run:
         args = (self.env, self.model, self.tables, self.settings, self.out, self.rng, k0, k1)
         if self.env is None:
             return int(tdk.run_kernel(family, *args))
-        return int(tdk.KERNELS[family].py_func(*args))  # the same source, as Python
+        return int(tdk.run_kernel.py_func(family, *args))  # the same source, as Python
 
     def estimate(self) -> tuple[Any, Any, None]:
         """What the error is measured on: Q (control) and V."""

@@ -80,7 +80,7 @@ def plain_gymnasium_q_learning(env: Any, n_steps: int, sarsa: bool, seed: int = 
 def kernel_steps(
     mdp: pl.FiniteMDP, rule: int, episodes: int, *, python: bool = False
 ) -> Callable[[], int]:
-    """One call of the one-step control kernel, compiled or over Gymnasium (general path)."""
+    """One call of the episode loop of one-step control, compiled or over Gymnasium."""
     S, A = mdp.n_states, mdp.n_actions
     km = KernelMDP.of(mdp)
     alpha, eps = Schedule.constant(0.1).params, Schedule.constant(0.1).params
@@ -96,6 +96,10 @@ def kernel_steps(
             np.zeros((0, 0), dtype=np.int64),
             np.zeros((0, 0)),
             np.zeros(1, dtype=np.int64),
+            np.zeros((0, 0)),
+            np.zeros(0, dtype=np.int64),
+            np.zeros(0, dtype=np.int64),
+            np.zeros(0),
         )
         out = tdk.Episodes(
             np.zeros(episodes),
@@ -107,11 +111,11 @@ def kernel_steps(
         if python:
             env: Any = GymStepper(pl.MDPEnv(mdp), StateIndex.discrete(S), 0)
             model = tdk.model_tuple(None, km.mask)
-            fn = tdk.one_step_control_kernel.py_func
+            fn = tdk.run_kernel.py_func
         else:
             env, model = None, tdk.model_tuple(km)
-            fn = tdk.one_step_control_kernel
-        return int(fn(env, model, tables, settings, out, rng, 0, episodes))
+            fn = tdk.run_kernel
+        return int(fn(tdk.ONE_STEP, env, model, tables, settings, out, rng, 0, episodes))
 
     return run
 

@@ -1,7 +1,8 @@
 """What one Q-learning / Sarsa step on FrozenLake 8x8 costs, piece by piece (one core).
 
 Each piece of the one-step control kernel's step is timed alone in a compiled loop of
-N calls over the same arrays the kernel reads (numba microbenchmarks): the RNG draw,
+N calls over the same arrays the kernel reads (numba microbenchmarks, compiled as the
+episode loops are: ``td_kernels.episode_loop``, without reference counting): the RNG draw,
 sampling the next state from the model, the epsilon-greedy action (with its random
 tie-break), the Q-learning target's max, the step-size schedule; then the whole
 kernel, the public API (error against q* at 50 checkpoints) and the public API with
@@ -19,7 +20,6 @@ import time
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import gymnasium as gym
-import numba as nb
 import numpy as np
 
 import policylab as pl
@@ -33,11 +33,12 @@ from policylab.tabular.kernels import (
 )
 from policylab.tabular.rules.td import q_learning_target
 from policylab.tabular.schedules import Schedule, schedule_value
+from policylab.tabular.td_kernels import episode_loop
 
 N = 2_000_000
 
 
-@nb.njit
+@episode_loop
 def _draws(rng, n):  # type: ignore[no-untyped-def]
     acc = 0.0
     for _ in range(n):
@@ -45,7 +46,7 @@ def _draws(rng, n):  # type: ignore[no-untyped-def]
     return acc
 
 
-@nb.njit
+@episode_loop
 def _next(indptr, cdf, rng, n, n_rows):  # type: ignore[no-untyped-def]
     acc = 0
     row = 0
@@ -57,7 +58,7 @@ def _next(indptr, cdf, rng, n, n_rows):  # type: ignore[no-untyped-def]
     return acc
 
 
-@nb.njit
+@episode_loop
 def _eps_greedy(q, mask, rng, n):  # type: ignore[no-untyped-def]
     acc = 0
     s = 0
@@ -70,7 +71,7 @@ def _eps_greedy(q, mask, rng, n):  # type: ignore[no-untyped-def]
     return acc
 
 
-@nb.njit
+@episode_loop
 def _max_target(q, mask, n):  # type: ignore[no-untyped-def]
     acc = 0.0
     s = 0
@@ -83,7 +84,7 @@ def _max_target(q, mask, n):  # type: ignore[no-untyped-def]
     return acc
 
 
-@nb.njit
+@episode_loop
 def _schedule(params, n):  # type: ignore[no-untyped-def]
     acc = 0.0
     for i in range(n):

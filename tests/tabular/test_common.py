@@ -4,7 +4,7 @@ import pytest
 import policylab as pl
 from policylab.exceptions import InvalidArgumentError, UnknownLabelError
 from policylab.tabular import GroundTruth, StateIndex, checkpoint_episodes
-from policylab.tabular.kernels import rand_uniform, rng_states
+from policylab.tabular.kernels import rand_uniform, rng_states, seed_states
 
 
 def test_checkpoints_log_spaced_and_end_at_episodes():
@@ -35,6 +35,15 @@ def test_rng_states_reproducible_and_uniform():
     assert not np.array_equal(a[0], a[1])
     u = np.array([rand_uniform(a[0]) for _ in range(20_000)])
     assert u.min() >= 0 and u.max() < 1 and abs(u.mean() - 0.5) < 0.01
+
+
+def test_seed_states_are_each_seeds_own_rng_states():
+    seeds = [0, 1, 5, 2**63 - 2, 123456789]
+    expected = np.stack([rng_states(np.random.default_rng(s), 1)[0] for s in seeds])
+    got = seed_states(seeds)
+    assert got.dtype == np.uint64 and got.shape == (5, 4)
+    np.testing.assert_array_equal(got, expected)
+    assert seed_states([]).shape == (0, 4)
 
 
 def test_ground_truth_errors_hand_computed():

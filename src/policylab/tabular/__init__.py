@@ -35,10 +35,12 @@ Layout
 ``kernels``     the kernel conventions: per-run xoshiro RNG states (``rng_states``),
                 sampling the model (a ``Model`` named tuple), ``choose_action`` (one
                 action choice for every episode loop), ``generate_episode``.
-``td_kernels``  the TD episode loops, one per family (TD(0), one-step control, n-step,
-                lambda, Dyna-Q), each taking the same named tuples (``Model``,
-                ``Tables``, ``Settings``, ``Episodes``); ``many_runs`` runs R seeds in
-                one parallel (numba ``prange``) call. ``mc`` holds Monte Carlo's loop.
+``td_kernels``  the TD episodes, one function per family (TD(0), one-step control,
+                n-step, lambda, Dyna-Q), each taking the same named tuples (``Model``,
+                ``Tables``, ``Settings``), and the one loop over episodes that records
+                them (``run_kernel``, compiled without reference counting);
+                ``many_runs`` runs R seeds in one parallel (numba ``prange``) call.
+                ``mc`` holds Monte Carlo's loop.
 ``driver``      the one driver of every built-in learner: an entry turns a call into
                 a ``Plan`` (checked options, the problem, the exact answer, how to start
                 one run or many); ``learn`` runs it for one seed (ground truth, seeding,
@@ -57,8 +59,10 @@ How to add a learner
 --------------------
 1. Write each new update as one function in ``rules/td.py`` (``@register_jitable``,
    the equation and its section in the docstring), with a test against a hand value.
-2. A new TD variant of an existing loop: add its rule constant and branch to that loop
-   in ``td_kernels`` (a new loop: same eight arguments, add it to ``run_kernel``).
+2. A new TD variant of an existing family: add its rule constant and branch to that
+   family's episode in ``td_kernels`` (a new family: an episode function with the same
+   six arguments, ``@register_jitable(_nrt=False)``, working memory in ``Tables``
+   rather than allocated, returning (G_0, length, A_0); add it to ``run_kernel``).
 3. Add a ``TDEntry`` to ``TD_ENTRIES`` in ``td.py`` (name, function name, family, the
    title and equation of its docstring, its own ``Option``s with annotation/default),
    then run ``python -m policylab.tabular._generate``: it writes the public function's

@@ -35,7 +35,7 @@ from policylab.tabular.common import (
     is_finite_mdp,
     progress_bar,
 )
-from policylab.tabular.kernels import rng_states
+from policylab.tabular.kernels import rng_states, seed_states
 from policylab.tabular.registry import list_algorithms
 from policylab.tabular.result import LearnResult
 from policylab.validation import as_generator, check_seed, did_you_mean, normalize_name
@@ -355,9 +355,8 @@ def seed_study(
             sum(r.steps for r in results),
             time.perf_counter() - t0,
         )
-    rngs = np.stack([rng_states(as_generator(s), 1)[0] for s in seed_list])
     with _threads(workers):
-        many = plan.many(rngs)
+        many = plan.many(seed_states(seed_list))
     return SeedRuns(
         name,
         plan.problem,
@@ -398,16 +397,22 @@ def _seed_list(seeds: int | Sequence[int], seed: Seed) -> list[int]:
 
 @contextlib.contextmanager
 def _threads(workers: int | None) -> Iterator[None]:
-    """Numba's thread count limited to ``workers`` (if given) for the ``with`` block."""
-    if workers is None:
-        yield
-        return
+    """Numba's thread count limited to ``workers`` (if given) for the ``with`` block.
+
+    Runs are handed to the threads one at a time as they finish (a parallel chunk size
+    of 1) rather than split in equal shares up front: runs of different lengths then
+    keep every thread busy to the end.
+    """
     import numba
 
-    n = check_count(workers, "workers")
-    before = numba.get_num_threads()
-    numba.set_num_threads(min(n, int(numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
-    try:
-        yield
-    finally:
-        numba.set_num_threads(before)
+    with numba.parallel_chunksize(1):
+        if workers is None:
+            yield
+            return
+        n = check_count(workers, "workers")
+        before = numba.get_num_threads()
+        numba.set_num_threads(min(n, int(numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
+        try:
+            yield
+        finally:
+            numba.set_num_threads(before)

@@ -33,6 +33,7 @@ was most of the time of a step.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -73,6 +74,7 @@ __all__ = [
     "sample_action",
     "sample_next",
     "sample_start",
+    "seed_states",
     "uniform_action",
     "writable",
 ]
@@ -91,9 +93,24 @@ def rng_states(seed: int | np.random.Generator | None, n_runs: int = 1) -> NDArr
     xoshiro cannot leave) is replaced.
     """
     rng = np.random.default_rng(seed)
-    st = rng.integers(0, 2**64 - 1, size=(n_runs, 4), dtype=np.uint64, endpoint=True)
-    st[np.all(st == 0, axis=1)] = np.uint64(0x9E3779B97F4A7C15)
-    return st
+    return _usable(rng.integers(0, 2**64 - 1, size=(n_runs, 4), dtype=np.uint64, endpoint=True))
+
+
+def seed_states(seeds: Sequence[int]) -> NDArray[np.uint64]:
+    """``rng_states(seed, 1)[0]`` of each integer seed, stacked (R, 4): one run per seed.
+
+    Each seed's words come from the PCG64 that ``numpy.random.default_rng(seed)`` would
+    wrap, read raw (a full-range uint64 draw of ``integers`` is the raw output), without
+    building a Generator per seed: many seeds are set up in a fraction of the time.
+    """
+    raw = [np.random.PCG64(s).random_raw(4) for s in seeds]
+    return _usable(np.array(raw, dtype=np.uint64).reshape(len(raw), 4))
+
+
+def _usable(states: NDArray[np.uint64]) -> NDArray[np.uint64]:
+    """The states with an all-zero one (which xoshiro cannot leave) replaced."""
+    states[np.all(states == 0, axis=1)] = np.uint64(0x9E3779B97F4A7C15)
+    return states
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -516,50 +533,39 @@ def generate_episode(
 
 
 # ---------------------------------------------------------------------------- the environment
-def env_reset(env: Any, initial: Any, rng: Any) -> int:
+def env_reset(env: Any, model: Model, rng: Any) -> int:
     """S_0: ``env.reset()`` (general path) or a draw from the model's start distribution.
 
-    On the compiled path ``env`` is None and the model's arrays are given (unpacked once
-    per kernel: a tuple read inside the loop would cost reference counting each step).
+    On the compiled path ``env`` is None and ``model`` is sampled with the run's RNG.
     """
     return int(env.reset())
 
 
-def env_step(
-    env: Any,
-    s: int,
-    a: int,
-    rng: Any,
-    indptr: Any,
-    next_states: Any,
-    cdf: Any,
-    rewards: Any,
-    terminal: Any,
-    n_actions: int,
-) -> tuple[int, float, bool, bool]:
+def env_step(env: Any, model: Model, s: int, a: int, rng: Any) -> tuple[int, float, bool, bool]:
     """(S_{t+1}, R_{t+1}, terminated, truncated) after A_t = a in S_t = s.
 
     General path: ``env.step(a)``. Compiled path (``env`` None): one outcome of row
-    ``s * A + a`` of the outcome table drawn with the shared ``sample_next``.
+    ``s * A + a`` of the model's outcome table, drawn with :func:`sample_next` (inlined
+    into the episode loops).
     """
     return env.step(a)  # type: ignore[no-any-return]
 
 
-@overload(env_reset)
-def _env_reset_model(env, initial, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
+@overload(env_reset, inline="always")
+def _env_reset_model(env, model, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
     if isinstance(env, types.NoneType):
-        return lambda env, initial, rng: sample_start(initial, rng)
+        return lambda env, model, rng: sample_start(model.initial, rng)
     return None
 
 
-@overload(env_step)
-def _env_step_model(env, s, a, rng, indptr, next_states, cdf, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]  # pragma: no cover
+@overload(env_step, inline="always")
+def _env_step_model(env, model, s, a, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
     if isinstance(env, types.NoneType):
 
-        def impl(env, s, a, rng, indptr, next_states, cdf, rewards, terminal, n_actions):  # type: ignore[no-untyped-def]
-            k = sample_next(indptr, cdf, s * n_actions + a, rng)
-            nxt = int(next_states[k])
-            return nxt, float(rewards[k]), bool(terminal[nxt]), False
+        def impl(env, model, s, a, rng):  # type: ignore[no-untyped-def]
+            o = sample_next(model.indptr, model.cdf, s * model.mask.shape[1] + a, rng)
+            s2 = model.next_states[o]
+            return s2, model.rewards[o], model.terminal[s2], False
 
         return impl
     return None

@@ -290,6 +290,7 @@ def _tables(
         q2 = w.copy()
         qb = w + q2  # the behaviour's Q1 + Q2, kept up to date by the kernel
     dyna = algo.family == "dyna"
+    ring = algo.n + 1 if algo.family == "n_step" else 0
     return tdk.Tables(
         w,
         q2,
@@ -299,6 +300,10 @@ def _tables(
         np.full((*lead, S, A) if dyna else (*lead, 0, 0), -1, dtype=np.int64),
         np.zeros((*lead, S, A) if dyna else (*lead, 0, 0)),
         np.zeros((*lead, S * A + 1 if dyna else 1), dtype=np.int64),
+        np.zeros((*lead, S, cols) if algo.family == "lambda" else (*lead, 0, 0)),
+        np.zeros((*lead, ring), dtype=np.int64),
+        np.zeros((*lead, ring), dtype=np.int64),
+        np.zeros((*lead, ring)),
     )
 
 
@@ -372,7 +377,7 @@ class _Run:
         args = (self.env, self.model, self.tables, self.settings, self.out, self.rng, k0, k1)
         if self.env is None:
             return int(tdk.run_kernel(family, *args))
-        return int(tdk.KERNELS[family].py_func(*args))  # the same source, as Python
+        return int(tdk.run_kernel.py_func(family, *args))  # the same source, as Python
 
     def estimate(self) -> tuple[Any, Any, None]:
         """What the error is measured on: Q (control) and V."""

@@ -29,7 +29,7 @@ from policylab.deep.common.buffers import NStepWindow, ReplayBatch, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check_replay_settings, option
 from policylab.deep.common.losses import twin_q_loss, twin_q_loss_grad
-from policylab.deep.common.mlp_grad import activation_backward, fused_adam_step
+from policylab.deep.common.mlp_grad import fused_adam_step
 from policylab.deep.common.networks import TwinQNetwork, clip_grad_norm
 from policylab.exceptions import InvalidArgumentError, NonFiniteError
 from policylab.validation import fmt_number
@@ -82,8 +82,9 @@ def _act_(h: torch.Tensor, act: str) -> torch.Tensor:
 
 
 def _linear_act(h: torch.Tensor, w: torch.Tensor, b: torch.Tensor, act: str) -> torch.Tensor:
-    """act(h W + b) of every critic, (k, B, H_out), from (k, B, H_in), (k, H_in, H_out), (k, 1, H_out).
+    """act(h W + b) of every critic at once.
 
+    Shapes: h (k, B, H_in), w (k, H_in, H_out), b (k, 1, H_out); the result (k, B, H_out).
     With ReLU the bias and the activation are one pass over the product (``_add_relu_``)
     instead of a copy of the bias into the product's output and a ReLU pass after it.
     """
@@ -93,9 +94,11 @@ def _linear_act(h: torch.Tensor, w: torch.Tensor, b: torch.Tensor, act: str) -> 
 
 
 def _act_backward_(grad: torch.Tensor, h: torch.Tensor, act: str) -> torch.Tensor:
-    """dL/dz = dL/dh * act'(z) from the output h = act(z), in place on ``grad`` (a fresh
-    tensor of the backward pass): the kernels of autograd's own backward, without a
-    new output tensor."""
+    """dL/dz = dL/dh * act'(z) from the output h = act(z), in place on ``grad``.
+
+    ``grad`` is a fresh tensor of the backward pass; the kernels are those of autograd's
+    own backward, writing into it instead of a new output tensor.
+    """
     aten = torch.ops.aten
     if act == "relu":
         return aten.threshold_backward.grad_input(grad, h, 0, grad_input=grad)  # type: ignore[no-any-return]

@@ -176,9 +176,9 @@ class SAC(OffPolicyAgent):
         actions_pi, log_prob = all_actions[:b], all_log_prob[:b]
 
         # 1. the critics, toward the soft clipped double-Q target
-        next_q = twin_q_forward(
-            self.critic_target, next_obs, all_actions[b:], self._target_params
-        )[0]
+        next_q = twin_q_forward(self.critic_target, next_obs, all_actions[b:], self._target_params)[
+            0
+        ]
         y = clipped_double_q_targets(rewards, discounts, next_q, all_log_prob[b:], alpha)
         critic_loss, q = self._critic_step(obs, actions, y)
 

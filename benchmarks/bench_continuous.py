@@ -228,6 +228,33 @@ def _floor(algo: str, obs_dim: int, m: int, hidden: tuple[int, int], b: int) -> 
     return every_td3, delayed
 
 
+def _flops(fn: object) -> int:
+    """Floating-point operations of the matrix products ``fn`` runs (torch's flop counter)."""
+    from torch.utils.flop_counter import FlopCounterMode
+
+    with FlopCounterMode(display=False) as counter:
+        fn()  # type: ignore[operator]
+    return int(counter.get_total_flops())
+
+
+def _hot_rate(hidden: tuple[int, int], b: int) -> float:
+    """GFLOP/s of the update's largest product, (B, H_1) (H_1, H_2), with hot operands.
+
+    The product repeated on the same operands, so they stay in the core's cache: the
+    best rate this CPU reaches on the update's typical shape, one thread.
+    """
+    import torch
+
+    x, w = torch.randn(b, hidden[0]), torch.randn(hidden[0], hidden[1])
+    ts = []
+    for i in range(60):
+        t = time.thread_time()
+        torch.mm(x, w)
+        if i >= 10:
+            ts.append(time.thread_time() - t)
+    return 2 * b * hidden[0] * hidden[1] / float(np.percentile(ts, 25)) / 1e9
+
+
 def per_update(args: argparse.Namespace) -> None:
     """CPU ms of single updates of both libraries, alternating in one process (p25)."""
     import gymnasium as gym
@@ -277,12 +304,16 @@ def per_update(args: argparse.Namespace) -> None:
                     times[lib].append(time.process_time() - t)
         ms = {lib: 1000 * float(np.percentile(ts, 25)) for lib, ts in times.items()}
         floor = ms["floor"] + ms.get("floor, delayed part", 0.0) / 2  # TD3: every 2nd update
+        gflop = (_flops(every) + (_flops(delayed) / 2 if delayed is not None else 0)) / 1e9
+        rate = _hot_rate(NETS[algo], 256)
         print(
             f"{algo.upper()}: policylab {ms['policylab']:.2f} ms, SB3 {ms['SB3']:.2f} ms CPU per "
             f"update (25th percentile of {args.per_update} alternating updates each), "
             f"SB3 / policylab {ms['SB3'] / ms['policylab']:.2f}x; the update's matrix products "
             f"alone (the floor) {floor:.2f} ms: policylab at {ms['policylab'] / floor:.2f}x "
-            f"the floor, SB3 at {ms['SB3'] / floor:.2f}x",
+            f"the floor, SB3 at {ms['SB3'] / floor:.2f}x. Those products count {gflop:.3f} "
+            f"GFLOP an update; at {rate:.0f} GFLOP/s (one {NETS[algo][0]}x{NETS[algo][1]} "
+            f"product with its operands in cache) they would take {gflop / rate * 1e3:.2f} ms",
             flush=True,
         )
     print(_load())

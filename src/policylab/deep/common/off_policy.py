@@ -353,20 +353,6 @@ class OffPolicyAgent(Agent):
         fused_adam_step(self.critic_optimizer)
         return loss, q
 
-    def _critic_constant(
-        self, obs: torch.Tensor, actions: torch.Tensor, first_only: bool = False
-    ) -> torch.Tensor:
-        """Q_i(S, a) through the critics' weights held constant (for an actor's loss).
-
-        Returns:
-            (2, B) Q_1 and Q_2, or (1, B) Q_1 alone with ``first_only`` (half the work).
-        """
-        params = [p.detach() for p in self._critic_params]
-        if first_only:
-            params = [p[:1] for p in params]
-        out: torch.Tensor = self.critic(obs, actions, params)
-        return out
-
     # ---------------------------------------------------------------- actions
     def to_env_actions(self, actions: NDArray[Any]) -> NDArray[Any]:
         """[-1, 1] actions rescaled to the action space: low + (a + 1) (high - low) / 2."""

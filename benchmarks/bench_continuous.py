@@ -16,6 +16,15 @@ the zoo's protocol of 150,000 evaluation steps); ``--sb3`` trains SB3 alongside.
     python benchmarks/bench_continuous.py                  # the speed table
     python benchmarks/bench_continuous.py --pendulum       # the Pendulum-v1 table
     python benchmarks/bench_continuous.py --per-update 60  # single updates, alternating
+    python benchmarks/bench_continuous.py --walker runs/walker-walking  # how a walker walks
+
+``--walker RUN_DIR`` reads a run of ``policylab train ... --reward walking``: it plays
+``--episodes`` greedy episodes of its policy on the plain env and prints the forward
+velocity (the root's x displacement over the episode's duration, and the mean of
+``info["x_velocity"]``), the episode lengths and both returns, and draws the run's
+learning curve (``progress.csv``: the return of the recent training episodes under the
+reward it trained on) with policylab's plotting into ``RUN_DIR/learning_curve.png``
+(``--figure`` elsewhere).
 """
 
 from __future__ import annotations
@@ -397,6 +406,65 @@ def pendulum(args: argparse.Namespace) -> None:
         )
 
 
+def walker(args: argparse.Namespace) -> None:
+    """Forward velocity, episode lengths and returns of a walking run; its learning curve."""
+    import csv
+    import json
+
+    import gymnasium as gym
+
+    import policylab as pl
+    from policylab.deep.common.walking import WalkingReward
+    from policylab.plot import run_curves_figure, save_figure
+
+    run = Path(args.walker)
+    agent = pl.deep.load(run)
+    doc = json.loads((run / "run.json").read_text())
+    v_max = float(doc.get("reward", {}).get("v_max", 3.0))
+    env = WalkingReward(gym.make(str(agent.env_id)), v_max=v_max)
+    dt = float(env.unwrapped.dt)  # type: ignore[attr-defined]
+    rows = []
+    for i in range(args.episodes):
+        obs, _ = env.reset(seed=1000 + i)
+        x0 = float(env.unwrapped.data.qpos[0])  # type: ignore[attr-defined]
+        steps, env_ret, walk_ret, vx = 0, 0.0, 0.0, []
+        done = term = False
+        while not done:
+            obs, r, term, trunc, info = env.step(agent.predict(obs))
+            steps += 1
+            walk_ret += float(r)
+            env_ret += float(info["env_reward"])
+            vx.append(float(info["x_velocity"]))
+            done = term or trunc
+        x1 = float(env.unwrapped.data.qpos[0])  # type: ignore[attr-defined]
+        rows.append((steps, (x1 - x0) / (steps * dt), float(np.mean(vx)), walk_ret, env_ret, term))
+        print(
+            f"episode {i} (reset seed {1000 + i}): {steps} steps, {x1 - x0:.2f} m in "
+            f"{steps * dt:.1f} s = {rows[-1][1]:.2f} m/s (mean x_velocity {rows[-1][2]:.2f}), "
+            f"walking return {walk_ret:.1f}, env return {env_ret:.1f}",
+            flush=True,
+        )
+    a = np.array(rows)
+    print(
+        f"{agent.env_id}, {agent.num_timesteps:,} env steps, {args.episodes} greedy episodes: "
+        f"{a[:, 0].mean():.0f} steps on average ({int(a[:, 5].sum())} fell), forward "
+        f"velocity {a[:, 1].mean():.2f} m/s (min {a[:, 1].min():.2f}, max {a[:, 1].max():.2f}), "
+        f"walking return {a[:, 3].mean():.1f}, env return {a[:, 4].mean():.1f}"
+    )
+    with (run / "progress.csv").open() as f:
+        prog = [r for r in csv.DictReader(f) if r.get("recent_return")]
+    x = np.array([float(r["step"]) for r in prog])
+    y = np.array([float(r["recent_return"]) for r in prog])
+    fig = run_curves_figure(
+        {f"{agent.env_id}, {doc.get('algo', '').upper()}": {"walking reward": [(x, y)]}},
+        x_label="env step",
+        y_label="return of the recent training episodes",
+        title=f"Learning to walk: {agent.env_id} under the walking reward (v_max {v_max:g} m/s)",
+    )
+    out = save_figure(fig, args.figure or run / "learning_curve.png")
+    print(f"wrote {out}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--env", default="HalfCheetah-v5")
@@ -418,9 +486,18 @@ def main() -> None:
         "--per-update", type=int, default=0, metavar="N",
         help="instead: N single updates of each library, alternating, CPU ms each",
     )  # fmt: skip
+    p.add_argument(
+        "--walker", metavar="RUN_DIR",
+        help="instead: forward velocity and learning curve of a walking run (--episodes of them)",
+    )  # fmt: skip
+    p.add_argument("--figure", help="learning-curve file for --walker")
     p.add_argument("--no-write", dest="write", action="store_false")
     args = p.parse_args()
-    if args.per_update:
+    if args.walker:
+        if args.episodes == 750:  # the Pendulum protocol's default; a walker episode is longer
+            args.episodes = 10
+        walker(args)
+    elif args.per_update:
         per_update(args)
     else:
         pendulum(args) if args.pendulum else speed(args)

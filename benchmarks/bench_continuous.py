@@ -12,9 +12,12 @@ process got).
 Quality (``--pendulum``): policylab's SAC and TD3 with the zoo's Pendulum-v1 settings
 for 20k steps, on ``--seeds`` seeds, evaluated greedily on ``--episodes`` episodes (750,
 the zoo's protocol of 150,000 evaluation steps); ``--sb3`` trains SB3 alongside.
+``--quality ENV_ID --budget N`` does the same on a MuJoCo walker with the zoo's settings
+for it (10 evaluation episodes by default).
 
     python benchmarks/bench_continuous.py                  # the speed table
     python benchmarks/bench_continuous.py --pendulum       # the Pendulum-v1 table
+    python benchmarks/bench_continuous.py --quality Hopper-v5 --budget 200000 --sb3
     python benchmarks/bench_continuous.py --per-update 60  # single updates, alternating
     python benchmarks/bench_continuous.py --walker runs/walker-walking  # how a walker walks
 
@@ -328,20 +331,36 @@ def per_update(args: argparse.Namespace) -> None:
     print(_load())
 
 
-def _sb3_pendulum(algo: str, seed: int, steps: int) -> object:
-    """SB3's model trained with the zoo's Pendulum-v1 entry (the same as policylab's)."""
+def _sb3_model(algo: str, env_id: str, seed: int, steps: int) -> object:
+    """SB3's model trained with the zoo's entry for ``env_id`` (the same as policylab's).
+
+    Pendulum-v1: the zoo's own entry; a MuJoCo walker: the zoo's "mujoco-defaults"
+    (SB3's defaults, 10,000 random steps first; TD3 with N(0, 0.1^2) action noise).
+    """
+    import gymnasium as gym
     from stable_baselines3 import SAC, TD3
     from stable_baselines3.common.noise import NormalActionNoise
 
-    if algo == "sac":
-        model = SAC("MlpPolicy", "Pendulum-v1", learning_rate=1e-3, seed=seed, device="cpu")
+    m = int(np.prod(gym.make(env_id).action_space.shape))  # type: ignore[arg-type]
+    noise = NormalActionNoise(np.zeros(m), 0.1 * np.ones(m))
+    kw: dict[str, object] = dict(seed=seed, device="cpu")
+    if env_id == "Pendulum-v1":
+        if algo == "sac":
+            model: object = SAC("MlpPolicy", env_id, learning_rate=1e-3, **kw)
+        else:
+            model = TD3(
+                "MlpPolicy", env_id, gamma=0.98, buffer_size=200_000, learning_starts=10_000,
+                action_noise=noise, learning_rate=1e-3, policy_kwargs=dict(net_arch=[400, 300]),
+                **kw,
+            )  # fmt: skip
+    elif algo == "sac":
+        model = SAC("MlpPolicy", env_id, learning_starts=10_000, **kw)
     else:
         model = TD3(
-            "MlpPolicy", "Pendulum-v1", gamma=0.98, buffer_size=200_000, learning_starts=10_000,
-            action_noise=NormalActionNoise(np.zeros(1), 0.1 * np.ones(1)), learning_rate=1e-3,
-            policy_kwargs=dict(net_arch=[400, 300]), seed=seed, device="cpu",
+            "MlpPolicy", env_id, learning_starts=10_000, action_noise=noise,
+            learning_rate=1e-3, policy_kwargs=dict(net_arch=[400, 300]), **kw,
         )  # fmt: skip
-    model.learn(steps)
+    model.learn(steps)  # type: ignore[attr-defined]
     return model
 
 
@@ -353,14 +372,16 @@ class _SB3Predictor:
         return self.model.predict(obs, deterministic=deterministic)[0]  # type: ignore[attr-defined]
 
 
-def pendulum(args: argparse.Namespace) -> None:
+def quality(args: argparse.Namespace) -> None:
+    """Train with the zoo's settings for ``args.quality``, then evaluate the greedy policy."""
     import torch
 
     import policylab as pl
 
     torch.set_num_threads(1)
+    env_id = args.quality
     loads = [_load()]
-    published = {"sac": -157.0, "td3": -152.0}
+    published = {"sac": -157.0, "td3": -152.0} if env_id == "Pendulum-v1" else {}
     libs = args.libs or (["policylab", "SB3"] if args.sb3 else ["policylab"])
     rows = [
         f"| algorithm | library | seed | mean return, {args.episodes} greedy episodes "
@@ -368,37 +389,37 @@ def pendulum(args: argparse.Namespace) -> None:
         "|---|---|---:|---:|---:|---:|",
     ]
     for algo in args.algos:
-        fields, steps = pl.deep.default_config(algo, "Pendulum-v1")
+        fields, zoo_steps = pl.deep.default_config(algo, env_id)
+        steps = int(args.budget or zoo_steps or 20_000)
         for seed in args.seed_list or range(args.seeds):
             for lib in libs:
                 t = time.perf_counter()
                 if lib == "policylab":
-                    agent: object = pl.deep.ALGORITHMS[algo]("Pendulum-v1", seed=seed, **fields)
-                    agent.learn(int(steps or 20_000))  # type: ignore[attr-defined]
+                    agent: object = pl.deep.ALGORITHMS[algo](env_id, seed=seed, **fields)
+                    agent.learn(steps)  # type: ignore[attr-defined]
                 else:
-                    agent = _SB3Predictor(_sb3_pendulum(algo, seed, int(steps or 20_000)))
+                    agent = _SB3Predictor(_sb3_model(algo, env_id, seed, steps))
                 sec = time.perf_counter() - t
                 episodes, eval_seed = args.episodes, 1000 + seed
-                returns = pl.deep.evaluate(agent, "Pendulum-v1", episodes, eval_seed)  # type: ignore[arg-type]
+                returns = pl.deep.evaluate(agent, env_id, episodes, eval_seed)  # type: ignore[arg-type]
                 ret = float(np.mean(returns))
-                print(f"{algo} {lib} seed {seed}: {ret:.1f} ({sec:.0f} s)", flush=True)
-                rows.append(
-                    f"| {algo.upper()} | {lib} | {seed} | {ret:.1f} | {published[algo]:.0f} "
-                    f"| {sec:.0f} |"
-                )
+                print(f"{env_id} {algo} {lib} seed {seed}: {ret:.1f} ({sec:.0f} s)", flush=True)
+                zoo = f"{published[algo]:.0f}" if algo in published else ""
+                rows.append(f"| {algo.upper()} | {lib} | {seed} | {ret:.1f} | {zoo} | {sec:.0f} |")
     loads.append(_load())
     body = (
-        "policylab's zoo defaults for Pendulum-v1 (`policylab train sac|td3 Pendulum-v1`), "
-        f"20,000 steps, then the mean return of {args.episodes} deterministic episodes of the "
-        "final policy (the zoo's published numbers are means over 150,000 evaluation steps, "
-        "750 episodes, of the final deterministic policy). Load before and after:\n\n"
+        f"policylab's zoo defaults for {env_id} (`policylab train sac|td3 {env_id}`), "
+        f"{steps:,} steps, then the mean return of {args.episodes} deterministic episodes of "
+        "the final policy (the zoo's published Pendulum-v1 numbers are means over 150,000 "
+        "evaluation steps, 750 episodes, of the final deterministic policy). Load before and "
+        "after:\n\n"
         f"    {loads[0]}\n    {loads[1]}\n\n" + "\n".join(rows)
     )
     print(body)
     if args.write:
         write_section(
-            "Deep RL: SAC and TD3 on Pendulum-v1",
-            f"python benchmarks/bench_continuous.py --pendulum --seeds {args.seeds} "
+            f"Deep RL: SAC and TD3 on {env_id}",
+            f"python benchmarks/bench_continuous.py --quality {env_id} --seeds {args.seeds} "
             f"--episodes {args.episodes}"
             + (" --sb3" if args.sb3 else "")
             + (f" --libs {' '.join(libs)}" if args.libs else ""),
@@ -474,6 +495,11 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--algos", nargs="+", default=["sac", "td3"])
     p.add_argument("--pendulum", action="store_true", help="the Pendulum-v1 quality table")
+    p.add_argument(
+        "--quality", metavar="ENV_ID",
+        help="the quality table on ENV_ID: train with the zoo's settings, evaluate greedily",
+    )  # fmt: skip
+    p.add_argument("--budget", type=int, help="env steps of each --quality run (default: zoo's)")
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--seed-list", type=int, nargs="+", help="these seeds instead of --seeds")
     p.add_argument("--episodes", type=int, default=750, help="evaluation episodes (--pendulum)")
@@ -493,14 +519,16 @@ def main() -> None:
     p.add_argument("--figure", help="learning-curve file for --walker")
     p.add_argument("--no-write", dest="write", action="store_false")
     args = p.parse_args()
+    if args.pendulum:
+        args.quality = "Pendulum-v1"
+    if (args.walker or args.quality not in (None, "Pendulum-v1")) and args.episodes == 750:
+        args.episodes = 10  # 750 is the Pendulum protocol's; a walker's episode is longer
     if args.walker:
-        if args.episodes == 750:  # the Pendulum protocol's default; a walker episode is longer
-            args.episodes = 10
         walker(args)
     elif args.per_update:
         per_update(args)
     else:
-        pendulum(args) if args.pendulum else speed(args)
+        quality(args) if args.quality else speed(args)
 
 
 if __name__ == "__main__":

@@ -33,6 +33,7 @@ reward it trained on) with policylab's plotting into ``RUN_DIR/learning_curve.pn
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -404,6 +405,12 @@ def quality(args: argparse.Namespace) -> None:
                 returns = pl.deep.evaluate(agent, env_id, episodes, eval_seed)  # type: ignore[arg-type]
                 ret = float(np.mean(returns))
                 print(f"{env_id} {algo} {lib} seed {seed}: {ret:.1f} ({sec:.0f} s)", flush=True)
+                if args.results:  # one JSON line per run, for --summarize
+                    with open(args.results, "a") as f:
+                        f.write(json.dumps(dict(
+                            env=env_id, algo=algo, lib=lib, seed=seed, steps=steps,
+                            episodes=episodes, mean_return=ret, seconds=sec,
+                        )) + "\n")  # fmt: skip
                 zoo = f"{published[algo]:.0f}" if algo in published else ""
                 rows.append(f"| {algo.upper()} | {lib} | {seed} | {ret:.1f} | {zoo} | {sec:.0f} |")
     loads.append(_load())
@@ -427,10 +434,32 @@ def quality(args: argparse.Namespace) -> None:
         )
 
 
+def summarize(args: argparse.Namespace) -> None:
+    """Mean return over seeds and its 95% bootstrap interval, from --results files."""
+    import policylab as pl
+
+    runs: dict[tuple[str, str, str, int], list[float]] = {}
+    for path in args.summarize:
+        for line in Path(path).read_text().splitlines():
+            if line.strip():
+                r = json.loads(line)
+                key = (r["env"], r["algo"].upper(), r["lib"], int(r["steps"]))
+                runs.setdefault(key, []).append(float(r["mean_return"]))
+    print(
+        "| env | algorithm | library | env steps | seeds | mean return | 95% bootstrap interval "
+        "| per seed |\n|---|---|---|---:|---:|---:|---|---|"
+    )
+    for (env, algo, lib, steps), rets in sorted(runs.items()):
+        lo, hi = pl.stats.bootstrap_ci(np.array(rets), pl.stats.mean, reps=2000, seed=0)
+        print(
+            f"| {env} | {algo} | {lib} | {steps:,} | {len(rets)} | {np.mean(rets):.1f} "
+            f"| [{lo:.1f}, {hi:.1f}] | {', '.join(f'{x:.1f}' for x in rets)} |"
+        )
+
+
 def walker(args: argparse.Namespace) -> None:
     """Forward velocity, episode lengths and returns of a walking run; its learning curve."""
     import csv
-    import json
 
     import gymnasium as gym
 
@@ -500,6 +529,11 @@ def main() -> None:
         help="the quality table on ENV_ID: train with the zoo's settings, evaluate greedily",
     )  # fmt: skip
     p.add_argument("--budget", type=int, help="env steps of each --quality run (default: zoo's)")
+    p.add_argument("--results", help="append each --quality run's result to this JSON-lines file")
+    p.add_argument(
+        "--summarize", nargs="+", metavar="FILE",
+        help="instead: mean and bootstrap interval over seeds of --results files",
+    )  # fmt: skip
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--seed-list", type=int, nargs="+", help="these seeds instead of --seeds")
     p.add_argument("--episodes", type=int, default=750, help="evaluation episodes (--pendulum)")
@@ -523,7 +557,9 @@ def main() -> None:
         args.quality = "Pendulum-v1"
     if (args.walker or args.quality not in (None, "Pendulum-v1")) and args.episodes == 750:
         args.episodes = 10  # 750 is the Pendulum protocol's; a walker's episode is longer
-    if args.walker:
+    if args.summarize:
+        summarize(args)
+    elif args.walker:
         walker(args)
     elif args.per_update:
         per_update(args)

@@ -12,15 +12,28 @@ process got).
 Quality (``--pendulum``): policylab's SAC and TD3 with the zoo's Pendulum-v1 settings
 for 20k steps, on ``--seeds`` seeds, evaluated greedily on ``--episodes`` episodes (750,
 the zoo's protocol of 150,000 evaluation steps); ``--sb3`` trains SB3 alongside.
+``--quality ENV_ID --budget N`` does the same on a MuJoCo walker with the zoo's settings
+for it (10 evaluation episodes by default).
 
     python benchmarks/bench_continuous.py                  # the speed table
     python benchmarks/bench_continuous.py --pendulum       # the Pendulum-v1 table
+    python benchmarks/bench_continuous.py --quality Hopper-v5 --budget 200000 --sb3
     python benchmarks/bench_continuous.py --per-update 60  # single updates, alternating
+    python benchmarks/bench_continuous.py --walker runs/walker-walking  # how a walker walks
+
+``--walker RUN_DIR`` reads a run of ``policylab train ... --reward walking``: it plays
+``--episodes`` greedy episodes of its policy on the plain env and prints the forward
+velocity (the root's x displacement over the episode's duration, and the mean of
+``info["x_velocity"]``), the episode lengths and both returns, and draws the run's
+learning curve (``progress.csv``: the return of the recent training episodes under the
+reward it trained on) with policylab's plotting into ``RUN_DIR/learning_curve.png``
+(``--figure`` elsewhere).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -228,6 +241,33 @@ def _floor(algo: str, obs_dim: int, m: int, hidden: tuple[int, int], b: int) -> 
     return every_td3, delayed
 
 
+def _flops(fn: object) -> int:
+    """Floating-point operations of the matrix products ``fn`` runs (torch's flop counter)."""
+    from torch.utils.flop_counter import FlopCounterMode
+
+    with FlopCounterMode(display=False) as counter:
+        fn()  # type: ignore[operator]
+    return int(counter.get_total_flops())
+
+
+def _hot_rate(hidden: tuple[int, int], b: int) -> float:
+    """GFLOP/s of the update's largest product, (B, H_1) (H_1, H_2), with hot operands.
+
+    The product repeated on the same operands, so they stay in the core's cache: the
+    best rate this CPU reaches on the update's typical shape, one thread.
+    """
+    import torch
+
+    x, w = torch.randn(b, hidden[0]), torch.randn(hidden[0], hidden[1])
+    ts = []
+    for i in range(60):
+        t = time.thread_time()
+        torch.mm(x, w)
+        if i >= 10:
+            ts.append(time.thread_time() - t)
+    return 2 * b * hidden[0] * hidden[1] / float(np.percentile(ts, 25)) / 1e9
+
+
 def per_update(args: argparse.Namespace) -> None:
     """CPU ms of single updates of both libraries, alternating in one process (p25)."""
     import gymnasium as gym
@@ -277,31 +317,51 @@ def per_update(args: argparse.Namespace) -> None:
                     times[lib].append(time.process_time() - t)
         ms = {lib: 1000 * float(np.percentile(ts, 25)) for lib, ts in times.items()}
         floor = ms["floor"] + ms.get("floor, delayed part", 0.0) / 2  # TD3: every 2nd update
+        gflop = (_flops(every) + (_flops(delayed) / 2 if delayed is not None else 0)) / 1e9
+        rate = _hot_rate(NETS[algo], 256)
         print(
             f"{algo.upper()}: policylab {ms['policylab']:.2f} ms, SB3 {ms['SB3']:.2f} ms CPU per "
             f"update (25th percentile of {args.per_update} alternating updates each), "
             f"SB3 / policylab {ms['SB3'] / ms['policylab']:.2f}x; the update's matrix products "
             f"alone (the floor) {floor:.2f} ms: policylab at {ms['policylab'] / floor:.2f}x "
-            f"the floor, SB3 at {ms['SB3'] / floor:.2f}x",
+            f"the floor, SB3 at {ms['SB3'] / floor:.2f}x. Those products count {gflop:.3f} "
+            f"GFLOP an update; at {rate:.0f} GFLOP/s (one {NETS[algo][0]}x{NETS[algo][1]} "
+            f"product with its operands in cache) they would take {gflop / rate * 1e3:.2f} ms",
             flush=True,
         )
     print(_load())
 
 
-def _sb3_pendulum(algo: str, seed: int, steps: int) -> object:
-    """SB3's model trained with the zoo's Pendulum-v1 entry (the same as policylab's)."""
+def _sb3_model(algo: str, env_id: str, seed: int, steps: int) -> object:
+    """SB3's model trained with the zoo's entry for ``env_id`` (the same as policylab's).
+
+    Pendulum-v1: the zoo's own entry; a MuJoCo walker: the zoo's "mujoco-defaults"
+    (SB3's defaults, 10,000 random steps first; TD3 with N(0, 0.1^2) action noise).
+    """
+    import gymnasium as gym
     from stable_baselines3 import SAC, TD3
     from stable_baselines3.common.noise import NormalActionNoise
 
-    if algo == "sac":
-        model = SAC("MlpPolicy", "Pendulum-v1", learning_rate=1e-3, seed=seed, device="cpu")
+    m = int(np.prod(gym.make(env_id).action_space.shape))  # type: ignore[arg-type]
+    noise = NormalActionNoise(np.zeros(m), 0.1 * np.ones(m))
+    kw: dict[str, object] = dict(seed=seed, device="cpu")
+    if env_id == "Pendulum-v1":
+        if algo == "sac":
+            model: object = SAC("MlpPolicy", env_id, learning_rate=1e-3, **kw)
+        else:
+            model = TD3(
+                "MlpPolicy", env_id, gamma=0.98, buffer_size=200_000, learning_starts=10_000,
+                action_noise=noise, learning_rate=1e-3, policy_kwargs=dict(net_arch=[400, 300]),
+                **kw,
+            )  # fmt: skip
+    elif algo == "sac":
+        model = SAC("MlpPolicy", env_id, learning_starts=10_000, **kw)
     else:
         model = TD3(
-            "MlpPolicy", "Pendulum-v1", gamma=0.98, buffer_size=200_000, learning_starts=10_000,
-            action_noise=NormalActionNoise(np.zeros(1), 0.1 * np.ones(1)), learning_rate=1e-3,
-            policy_kwargs=dict(net_arch=[400, 300]), seed=seed, device="cpu",
+            "MlpPolicy", env_id, learning_starts=10_000, action_noise=noise,
+            learning_rate=1e-3, policy_kwargs=dict(net_arch=[400, 300]), **kw,
         )  # fmt: skip
-    model.learn(steps)
+    model.learn(steps)  # type: ignore[attr-defined]
     return model
 
 
@@ -313,14 +373,16 @@ class _SB3Predictor:
         return self.model.predict(obs, deterministic=deterministic)[0]  # type: ignore[attr-defined]
 
 
-def pendulum(args: argparse.Namespace) -> None:
+def quality(args: argparse.Namespace) -> None:
+    """Train with the zoo's settings for ``args.quality``, then evaluate the greedy policy."""
     import torch
 
     import policylab as pl
 
     torch.set_num_threads(1)
+    env_id = args.quality
     loads = [_load()]
-    published = {"sac": -157.0, "td3": -152.0}
+    published = {"sac": -157.0, "td3": -152.0} if env_id == "Pendulum-v1" else {}
     libs = args.libs or (["policylab", "SB3"] if args.sb3 else ["policylab"])
     rows = [
         f"| algorithm | library | seed | mean return, {args.episodes} greedy episodes "
@@ -328,42 +390,129 @@ def pendulum(args: argparse.Namespace) -> None:
         "|---|---|---:|---:|---:|---:|",
     ]
     for algo in args.algos:
-        fields, steps = pl.deep.default_config(algo, "Pendulum-v1")
+        fields, zoo_steps = pl.deep.default_config(algo, env_id)
+        steps = int(args.budget or zoo_steps or 20_000)
         for seed in args.seed_list or range(args.seeds):
             for lib in libs:
                 t = time.perf_counter()
                 if lib == "policylab":
-                    agent: object = pl.deep.ALGORITHMS[algo]("Pendulum-v1", seed=seed, **fields)
-                    agent.learn(int(steps or 20_000))  # type: ignore[attr-defined]
+                    agent: object = pl.deep.ALGORITHMS[algo](env_id, seed=seed, **fields)
+                    agent.learn(steps)  # type: ignore[attr-defined]
                 else:
-                    agent = _SB3Predictor(_sb3_pendulum(algo, seed, int(steps or 20_000)))
+                    agent = _SB3Predictor(_sb3_model(algo, env_id, seed, steps))
                 sec = time.perf_counter() - t
                 episodes, eval_seed = args.episodes, 1000 + seed
-                returns = pl.deep.evaluate(agent, "Pendulum-v1", episodes, eval_seed)  # type: ignore[arg-type]
+                returns = pl.deep.evaluate(agent, env_id, episodes, eval_seed)  # type: ignore[arg-type]
                 ret = float(np.mean(returns))
-                print(f"{algo} {lib} seed {seed}: {ret:.1f} ({sec:.0f} s)", flush=True)
-                rows.append(
-                    f"| {algo.upper()} | {lib} | {seed} | {ret:.1f} | {published[algo]:.0f} "
-                    f"| {sec:.0f} |"
-                )
+                print(f"{env_id} {algo} {lib} seed {seed}: {ret:.1f} ({sec:.0f} s)", flush=True)
+                if args.results:  # one JSON line per run, for --summarize
+                    with open(args.results, "a") as f:
+                        f.write(json.dumps(dict(
+                            env=env_id, algo=algo, lib=lib, seed=seed, steps=steps,
+                            episodes=episodes, mean_return=ret, seconds=sec,
+                        )) + "\n")  # fmt: skip
+                zoo = f"{published[algo]:.0f}" if algo in published else ""
+                rows.append(f"| {algo.upper()} | {lib} | {seed} | {ret:.1f} | {zoo} | {sec:.0f} |")
     loads.append(_load())
     body = (
-        "policylab's zoo defaults for Pendulum-v1 (`policylab train sac|td3 Pendulum-v1`), "
-        f"20,000 steps, then the mean return of {args.episodes} deterministic episodes of the "
-        "final policy (the zoo's published numbers are means over 150,000 evaluation steps, "
-        "750 episodes, of the final deterministic policy). Load before and after:\n\n"
+        f"policylab's zoo defaults for {env_id} (`policylab train sac|td3 {env_id}`), "
+        f"{steps:,} steps, then the mean return of {args.episodes} deterministic episodes of "
+        "the final policy (the zoo's published Pendulum-v1 numbers are means over 150,000 "
+        "evaluation steps, 750 episodes, of the final deterministic policy). Load before and "
+        "after:\n\n"
         f"    {loads[0]}\n    {loads[1]}\n\n" + "\n".join(rows)
     )
     print(body)
     if args.write:
         write_section(
-            "Deep RL: SAC and TD3 on Pendulum-v1",
-            f"python benchmarks/bench_continuous.py --pendulum --seeds {args.seeds} "
+            f"Deep RL: SAC and TD3 on {env_id}",
+            f"python benchmarks/bench_continuous.py --quality {env_id} --seeds {args.seeds} "
             f"--episodes {args.episodes}"
             + (" --sb3" if args.sb3 else "")
             + (f" --libs {' '.join(libs)}" if args.libs else ""),
             body,
         )
+
+
+def summarize(args: argparse.Namespace) -> None:
+    """Mean return over seeds and its 95% bootstrap interval, from --results files."""
+    import policylab as pl
+
+    runs: dict[tuple[str, str, str, int], list[float]] = {}
+    for path in args.summarize:
+        for line in Path(path).read_text().splitlines():
+            if line.strip():
+                r = json.loads(line)
+                key = (r["env"], r["algo"].upper(), r["lib"], int(r["steps"]))
+                runs.setdefault(key, []).append(float(r["mean_return"]))
+    print(
+        "| env | algorithm | library | env steps | seeds | mean return | 95% bootstrap interval "
+        "| per seed |\n|---|---|---|---:|---:|---:|---|---|"
+    )
+    for (env, algo, lib, steps), rets in sorted(runs.items()):
+        lo, hi = pl.stats.bootstrap_ci(np.array(rets), pl.stats.mean, reps=2000, seed=0)
+        print(
+            f"| {env} | {algo} | {lib} | {steps:,} | {len(rets)} | {np.mean(rets):.1f} "
+            f"| [{lo:.1f}, {hi:.1f}] | {', '.join(f'{x:.1f}' for x in rets)} |"
+        )
+
+
+def walker(args: argparse.Namespace) -> None:
+    """Forward velocity, episode lengths and returns of a walking run; its learning curve."""
+    import csv
+
+    import gymnasium as gym
+
+    import policylab as pl
+    from policylab.deep.common.walking import WalkingReward
+    from policylab.plot import run_curves_figure, save_figure
+
+    run = Path(args.walker)
+    agent = pl.deep.load(run)
+    doc = json.loads((run / "run.json").read_text())
+    v_max = float(doc.get("reward", {}).get("v_max", 3.0))
+    env = WalkingReward(gym.make(str(agent.env_id)), v_max=v_max)
+    dt = float(env.unwrapped.dt)  # type: ignore[attr-defined]
+    rows = []
+    for i in range(args.episodes):
+        obs, _ = env.reset(seed=1000 + i)
+        x0 = float(env.unwrapped.data.qpos[0])  # type: ignore[attr-defined]
+        steps, env_ret, walk_ret, vx = 0, 0.0, 0.0, []
+        done = term = False
+        while not done:
+            obs, r, term, trunc, info = env.step(agent.predict(obs))
+            steps += 1
+            walk_ret += float(r)
+            env_ret += float(info["env_reward"])
+            vx.append(float(info["x_velocity"]))
+            done = term or trunc
+        x1 = float(env.unwrapped.data.qpos[0])  # type: ignore[attr-defined]
+        rows.append((steps, (x1 - x0) / (steps * dt), float(np.mean(vx)), walk_ret, env_ret, term))
+        print(
+            f"episode {i} (reset seed {1000 + i}): {steps} steps, {x1 - x0:.2f} m in "
+            f"{steps * dt:.1f} s = {rows[-1][1]:.2f} m/s (mean x_velocity {rows[-1][2]:.2f}), "
+            f"walking return {walk_ret:.1f}, env return {env_ret:.1f}",
+            flush=True,
+        )
+    a = np.array(rows)
+    print(
+        f"{agent.env_id}, {agent.num_timesteps:,} env steps, {args.episodes} greedy episodes: "
+        f"{a[:, 0].mean():.0f} steps on average ({int(a[:, 5].sum())} fell), forward "
+        f"velocity {a[:, 1].mean():.2f} m/s (min {a[:, 1].min():.2f}, max {a[:, 1].max():.2f}), "
+        f"walking return {a[:, 3].mean():.1f}, env return {a[:, 4].mean():.1f}"
+    )
+    with (run / "progress.csv").open() as f:
+        prog = [r for r in csv.DictReader(f) if r.get("recent_return")]
+    x = np.array([float(r["step"]) for r in prog])
+    y = np.array([float(r["recent_return"]) for r in prog])
+    fig = run_curves_figure(
+        {f"{agent.env_id}, {doc.get('algo', '').upper()}": {"walking reward": [(x, y)]}},
+        x_label="env step",
+        y_label="return of the recent training episodes",
+        title=f"Learning to walk: {agent.env_id} under the walking reward (v_max {v_max:g} m/s)",
+    )
+    out = save_figure(fig, args.figure or run / "learning_curve.png")
+    print(f"wrote {out}")
 
 
 def main() -> None:
@@ -375,6 +524,16 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--algos", nargs="+", default=["sac", "td3"])
     p.add_argument("--pendulum", action="store_true", help="the Pendulum-v1 quality table")
+    p.add_argument(
+        "--quality", metavar="ENV_ID",
+        help="the quality table on ENV_ID: train with the zoo's settings, evaluate greedily",
+    )  # fmt: skip
+    p.add_argument("--budget", type=int, help="env steps of each --quality run (default: zoo's)")
+    p.add_argument("--results", help="append each --quality run's result to this JSON-lines file")
+    p.add_argument(
+        "--summarize", nargs="+", metavar="FILE",
+        help="instead: mean and bootstrap interval over seeds of --results files",
+    )  # fmt: skip
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--seed-list", type=int, nargs="+", help="these seeds instead of --seeds")
     p.add_argument("--episodes", type=int, default=750, help="evaluation episodes (--pendulum)")
@@ -387,12 +546,25 @@ def main() -> None:
         "--per-update", type=int, default=0, metavar="N",
         help="instead: N single updates of each library, alternating, CPU ms each",
     )  # fmt: skip
+    p.add_argument(
+        "--walker", metavar="RUN_DIR",
+        help="instead: forward velocity and learning curve of a walking run (--episodes of them)",
+    )  # fmt: skip
+    p.add_argument("--figure", help="learning-curve file for --walker")
     p.add_argument("--no-write", dest="write", action="store_false")
     args = p.parse_args()
-    if args.per_update:
+    if args.pendulum:
+        args.quality = "Pendulum-v1"
+    if (args.walker or args.quality not in (None, "Pendulum-v1")) and args.episodes == 750:
+        args.episodes = 10  # 750 is the Pendulum protocol's; a walker's episode is longer
+    if args.summarize:
+        summarize(args)
+    elif args.walker:
+        walker(args)
+    elif args.per_update:
         per_update(args)
     else:
-        pendulum(args) if args.pendulum else speed(args)
+        quality(args) if args.quality else speed(args)
 
 
 if __name__ == "__main__":

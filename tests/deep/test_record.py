@@ -50,3 +50,30 @@ def test_record_on_a_headless_machine_keeps_sdl_off_the_display(
     monkeypatch.setenv("DISPLAY", ":0")  # a desktop keeps its own driver
     record_gif(agent, tmp_path / "f.gif", max_steps=2)
     assert "SDL_VIDEODRIVER" not in os.environ
+
+
+def test_every_kth_frame_is_kept(agent: deep.PPO, tmp_path: Path) -> None:
+    # frames at steps 0, k, 2k, ... of the episode (the others are not rendered at all)
+    ret, n = record_gif(agent, tmp_path / "all.gif", max_steps=9)
+    ret3, n3 = record_gif(agent, tmp_path / "third.gif", max_steps=9, every=3)
+    assert ret3 == ret == n - 1  # the same episode (a deterministic policy, the same seed)
+    assert n3 == 1 + int(ret) // 3
+
+
+def test_a_walker_is_rendered_through_its_tracking_camera() -> None:
+    mujoco = pytest.importorskip("mujoco")
+    from policylab.deep.common.envs import make_env
+    from policylab.deep.record import _follow_walker
+
+    env = make_env("Walker2d-v5", render_mode="rgb_array")
+    renderer = env.unwrapped.mujoco_renderer  # type: ignore[attr-defined]
+    assert renderer.camera_id == -1  # Gymnasium's default: a free camera that stays put
+    _follow_walker(env)
+    track = mujoco.mj_name2id(renderer.model, mujoco.mjtObj.mjOBJ_CAMERA, "track")
+    assert track != -1 and renderer.camera_id == track
+    assert renderer.model.cam_mode[track] == mujoco.mjtCamLight.mjCAMLIGHT_TRACKCOM
+    env.close()
+    other = make_env("Walker2d-v5", render_mode="rgb_array", camera_id=0)
+    _follow_walker(other)  # a camera chosen at make is kept
+    assert other.unwrapped.mujoco_renderer.camera_id == 0  # type: ignore[attr-defined]
+    other.close()

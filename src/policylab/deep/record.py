@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -18,6 +19,25 @@ __all__ = ["ANIMATION_FORMATS", "record_gif"]
 
 ANIMATION_FORMATS = {".gif": "GIF", ".png": "PNG", ".webp": "WEBP"}
 """File suffix -> image format of the animation (``.png`` is an animated PNG)."""
+
+
+def _follow_walker(env: Any) -> None:
+    """Render a MuJoCo walker through its model's own tracking camera, if it has one.
+
+    Gymnasium's MuJoCo walkers render ``rgb_array`` frames through a free camera that
+    stays where the episode started, so a walker that walks leaves the picture within
+    seconds. Their models define a camera named ``track`` that follows the walker's
+    centre of mass (``mode="trackcom"``); this renders through it instead. An env
+    without one, or rendered through a camera chosen at ``make``, is left alone.
+    """
+    renderer = getattr(env.unwrapped, "mujoco_renderer", None)
+    if renderer is None or getattr(renderer, "camera_id", None) != -1:
+        return
+    import mujoco
+
+    track = mujoco.mj_name2id(renderer.model, mujoco.mjtObj.mjOBJ_CAMERA, "track")
+    if track != -1:
+        renderer.camera_id = track
 
 
 def record_gif(
@@ -62,21 +82,21 @@ def record_gif(
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
     env = make_env(agent.env_id, render_mode="rgb_array")
+    _follow_walker(env)
     try:
         obs, _ = env.reset(seed=seed_)
         frames = [env.render()]
         total = 0.0
-        for _ in range(max_steps):
+        for t in range(1, max_steps + 1):
             obs, r, term, trunc, _ = env.step(agent.predict(obs, deterministic=True))
             total += float(r)
-            frames.append(env.render())
+            if t % every == 0:  # only the frames kept are rendered (rendering is the cost)
+                frames.append(env.render())
             if term or trunc:
                 break
     finally:
         env.close()
-    images = [
-        Image.fromarray(np.asarray(f, dtype=np.uint8)) for f in frames[::every] if f is not None
-    ]
+    images = [Image.fromarray(np.asarray(f, dtype=np.uint8)) for f in frames if f is not None]
     if not images:
         raise InvalidArgumentError(f"{agent.env_id!r} rendered no rgb_array frames")
     buf = io.BytesIO()

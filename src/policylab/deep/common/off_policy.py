@@ -29,7 +29,7 @@ from policylab.deep.common.buffers import NStepWindow, ReplayBatch, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check_replay_settings, option
 from policylab.deep.common.losses import twin_q_loss, twin_q_loss_grad
-from policylab.deep.common.mlp_grad import activation_backward, fused_adam_step
+from policylab.deep.common.mlp_grad import fused_adam_step
 from policylab.deep.common.networks import TwinQNetwork, clip_grad_norm
 from policylab.exceptions import InvalidArgumentError, NonFiniteError
 from policylab.validation import fmt_number
@@ -81,6 +81,32 @@ def _act_(h: torch.Tensor, act: str) -> torch.Tensor:
     return torch.nn.functional.elu_(h)
 
 
+def _linear_act(h: torch.Tensor, w: torch.Tensor, b: torch.Tensor, act: str) -> torch.Tensor:
+    """act(h W + b) of every critic at once.
+
+    Shapes: h (k, B, H_in), w (k, H_in, H_out), b (k, 1, H_out); the result (k, B, H_out).
+    With ReLU the bias and the activation are one pass over the product (``_add_relu_``)
+    instead of a copy of the bias into the product's output and a ReLU pass after it.
+    """
+    if act == "relu":
+        return torch.ops.aten._add_relu_(torch.bmm(h, w), b)  # type: ignore[no-any-return]
+    return _act_(torch.baddbmm(b, h, w), act)
+
+
+def _act_backward_(grad: torch.Tensor, h: torch.Tensor, act: str) -> torch.Tensor:
+    """dL/dz = dL/dh * act'(z) from the output h = act(z), in place on ``grad``.
+
+    ``grad`` is a fresh tensor of the backward pass; the kernels are those of autograd's
+    own backward, writing into it instead of a new output tensor.
+    """
+    aten = torch.ops.aten
+    if act == "relu":
+        return aten.threshold_backward.grad_input(grad, h, 0, grad_input=grad)  # type: ignore[no-any-return]
+    if act == "tanh":
+        return aten.tanh_backward.grad_input(grad, h, grad_input=grad)  # type: ignore[no-any-return]
+    return aten.elu_backward.grad_input(grad, 1.0, 1.0, 1.0, True, h, grad_input=grad)  # type: ignore[no-any-return]
+
+
 @torch.no_grad()
 def twin_q_forward(
     critic: TwinQNetwork,
@@ -91,9 +117,10 @@ def twin_q_forward(
     """(2, B) Q_1(s, a), Q_2(s, a) without autograd, and what their backward pass needs.
 
     The same arithmetic as :meth:`TwinQNetwork.forward` (one product [s, a, 1] [W_s;
-    W_a; b] for the first layer, one batched product per hidden layer, the one-output
-    layer as a product and a sum); ``params`` as there (e.g. first-axis slices ``[:1]``
-    for Q_1 alone, shape (1, B)).
+    W_a; b] for the first layer, one batched product per hidden layer), with the
+    one-output layer as one matrix-vector product per critic; ``params`` as there (e.g.
+    first-axis slices ``[:1]`` for Q_1 alone, shape (1, B)). Passing the critic's own
+    parameters as a list kept by the caller saves collecting them on every call.
     """
     ps: list[torch.Tensor] = list(critic.parameters() if params is None else params)
     act = _ACT_NAMES[type(critic.act)]
@@ -105,9 +132,12 @@ def twin_q_forward(
     h = _act_(torch.bmm(x.unsqueeze(0).expand(k, -1, -1), w_in), act)
     hidden = [h]
     for i in range(1, n - 1):
-        h = _act_(torch.baddbmm(bs[i], h, ws[i + 1]), act)
+        h = _linear_act(h, ws[i + 1], bs[i], act)
         hidden.append(h)
-    q = (h * ws[n].reshape(k, 1, -1)).sum(-1) + bs[n - 1].reshape(k, 1)
+    q = h.new_empty((k, len(obs)))
+    w_out, b_out = ws[n].reshape(k, -1), bs[n - 1].reshape(k)
+    for i in range(k):  # Q_i = h_n w + b, a matrix-vector product with the bias added in
+        torch.addmv(b_out[i], h[i], w_out[i], out=q[i])
     return q, TwinQCache(x, w_in, hidden, ps, act)
 
 
@@ -131,7 +161,8 @@ def twin_q_backward(
         dh_{l-1} = dz_l W_l^T,
 
     and for the first layer dW_in = [s, a, 1]^T dz_1 (the rows of W_s, W_a and b), and
-    dL/da = sum_i dz_1 W_a^T. The same products autograd runs, without its graph.
+    dL/da = sum_i dz_1 W_a^T. The same products autograd runs, without its graph; the
+    activations' derivatives are applied in place on the products' outputs.
 
     Args:
         cache: From :func:`twin_q_forward`.
@@ -153,13 +184,14 @@ def twin_q_backward(
         torch.sum(dq, 1, keepdim=True, out=_grad_buffer(bs[n - 1]).view(k, 1))
         out = _grad_buffer(ws[n]).view(k, 1, -1)
         torch.bmm(dq.unsqueeze(1), h, out=out)
-    g = activation_backward(dq.unsqueeze(-1) * ws[n].reshape(k, 1, -1), h, act)
+    # dh_n = dQ w^T as a batched outer product, then act' in place
+    g = _act_backward_(torch.bmm(dq.unsqueeze(-1), ws[n].reshape(k, 1, -1)), h, act)
     for i in range(len(hidden) - 2, -1, -1):  # the layer after hidden[i]: ws[i + 2], bs[i + 1]
         h_in = hidden[i]
         if param_grads:
             torch.sum(g, 1, keepdim=True, out=_grad_buffer(bs[i + 1]))
             torch.bmm(h_in.transpose(1, 2), g, out=_grad_buffer(ws[i + 2]))
-        g = activation_backward(torch.bmm(g, ws[i + 2].transpose(1, 2)), h_in, act)
+        g = _act_backward_(torch.bmm(g, ws[i + 2].transpose(1, 2)), h_in, act)
     if param_grads:
         d_in = torch.bmm(cache.x.t().unsqueeze(0).expand(k, -1, -1), g)
         n_obs, n_act = ws[0].shape[1], ws[1].shape[1]
@@ -168,7 +200,11 @@ def twin_q_backward(
         _grad_buffer(bs[0]).copy_(d_in[:, n_obs + n_act :])
     if not action_grad:
         return None
-    return torch.bmm(g, ws[1].transpose(1, 2)).sum(0)
+    w_act = ws[1]  # (k, action_dim, H_1): dL/da = sum_i dz_1,i W_a,i^T
+    grad_a = torch.mm(g[0], w_act[0].t())
+    for i in range(1, k):
+        grad_a.addmm_(g[i], w_act[i].t())
+    return grad_a
 
 
 @dataclasses.dataclass
@@ -283,7 +319,9 @@ class OffPolicyAgent(Agent):
             self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, self.torch_gen
         )
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        # the parameter lists the updates pass around, collected once
         self._critic_params = list(self.critic.parameters())
+        self._target_params = list(self.critic_target.parameters())
         self.critic_optimizer = torch.optim.Adam(
             self._critic_params, lr=cfg.learning_rate, fused=True
         )
@@ -308,26 +346,12 @@ class OffPolicyAgent(Agent):
         Returns:
             The loss and (2, B) Q_1(S, A), Q_2(S, A), both detached.
         """
-        q, cache = twin_q_forward(self.critic, obs, actions)
+        q, cache = twin_q_forward(self.critic, obs, actions, self._critic_params)
         loss = twin_q_loss(q, targets)
         twin_q_backward(cache, twin_q_loss_grad(q, targets))
         self._clip_grads(self._critic_params)
         fused_adam_step(self.critic_optimizer)
         return loss, q
-
-    def _critic_constant(
-        self, obs: torch.Tensor, actions: torch.Tensor, first_only: bool = False
-    ) -> torch.Tensor:
-        """Q_i(S, a) through the critics' weights held constant (for an actor's loss).
-
-        Returns:
-            (2, B) Q_1 and Q_2, or (1, B) Q_1 alone with ``first_only`` (half the work).
-        """
-        params = [p.detach() for p in self._critic_params]
-        if first_only:
-            params = [p[:1] for p in params]
-        out: torch.Tensor = self.critic(obs, actions, params)
-        return out
 
     # ---------------------------------------------------------------- actions
     def to_env_actions(self, actions: NDArray[Any]) -> NDArray[Any]:

@@ -127,7 +127,6 @@ class SAC(OffPolicyAgent):
         layers = mlp_layers(self.actor.net)
         assert layers is not None  # an ActorMLP is a plain MLP
         self._actor_layers = layers
-        self._target_params = list(self.critic_target.parameters())
         lr = cfg.learning_rate
         alpha0, self.learn_alpha = _initial_alpha(cfg.ent_coef)
         self.log_alpha = torch.tensor(math.log(alpha0), requires_grad=self.learn_alpha)
@@ -177,13 +176,15 @@ class SAC(OffPolicyAgent):
         actions_pi, log_prob = all_actions[:b], all_log_prob[:b]
 
         # 1. the critics, toward the soft clipped double-Q target
-        next_q = twin_q_forward(self.critic_target, next_obs, all_actions[b:])[0]
+        next_q = twin_q_forward(self.critic_target, next_obs, all_actions[b:], self._target_params)[
+            0
+        ]
         y = clipped_double_q_targets(rewards, discounts, next_q, all_log_prob[b:], alpha)
         critic_loss, q = self._critic_step(obs, actions, y)
 
         # 2. the actor, through the updated critics with their weights held constant:
         # dJ/dQ, then dJ/da = dJ/dQ dQ/da through the critics, then through the squash
-        q_pi, cache = twin_q_forward(self.critic, obs, actions_pi)
+        q_pi, cache = twin_q_forward(self.critic, obs, actions_pi, self._critic_params)
         actor_loss = sac_actor_loss(log_prob, q_pi, alpha)
         grad_log_prob, grad_q = sac_actor_loss_grad(log_prob, q_pi, alpha)
         grad_action = twin_q_backward(cache, grad_q, param_grads=False, action_grad=True)

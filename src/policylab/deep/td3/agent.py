@@ -102,7 +102,7 @@ class TD3(OffPolicyAgent):
         assert layers is not None and target_layers is not None  # ActorMLPs are plain MLPs
         self._actor_layers, self._target_actor_layers = layers, target_layers
         self._online = self._actor_params + self._critic_params
-        self._targets = list(self.actor_target.parameters()) + list(self.critic_target.parameters())
+        self._targets = list(self.actor_target.parameters()) + self._target_params
         self.actor_optimizer = torch.optim.Adam(
             self._actor_params, lr=cfg.learning_rate, fused=True
         )
@@ -135,7 +135,9 @@ class TD3(OffPolicyAgent):
         target_mu = torch.tanh(mlp_forward(self._target_actor_layers, act, next_obs)[0])
         next_actions = smoothed_target_actions(target_mu, noise, cfg.target_noise_clip)
         y = clipped_double_q_targets(
-            rewards, discounts, twin_q_forward(self.critic_target, next_obs, next_actions)[0]
+            rewards,
+            discounts,
+            twin_q_forward(self.critic_target, next_obs, next_actions, self._target_params)[0],
         )
         critic_loss, q = self._critic_step(obs, actions, y)
         self.n_updates += 1

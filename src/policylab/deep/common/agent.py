@@ -341,6 +341,7 @@ class Agent(ABC):
         try:
             with (
                 self._threads(),
+                _FlushDenormals(),
                 run.catch_interrupts() if run is not None else contextlib.nullcontext(),
                 TrainingProgress(
                     self.target_steps,
@@ -547,3 +548,29 @@ class _TorchThreads:
     def __exit__(self, *exc: object) -> None:
         if self.n and self.old and self.old != self.n:
             torch.set_num_threads(self.old)
+
+
+class _FlushDenormals:
+    """Treat subnormal floats as zero in this thread's CPU arithmetic for a block.
+
+    Adam's moment estimates of a gradient that stays at zero (a dead ReLU unit, an
+    action never taken) decay geometrically into the subnormal range, where x86 CPUs
+    take a slow microcode path for every operation on them: on a 256x256 DQN the
+    optimizer step became several times slower after a few thousand updates. Flushing
+    them to zero (the CPU's flush-to-zero and denormals-are-zero modes) changes only
+    numbers below 1.2e-38 in magnitude, which are negligible next to Adam's epsilon
+    and never reach the weights. The previous mode is restored on exit.
+    """
+
+    def __init__(self) -> None:
+        self.was_on = False
+
+    def __enter__(self) -> None:
+        # a subnormal times one is zero exactly when the mode is already on
+        self.was_on = bool(torch.tensor([1e-39]).mul(1.0).eq(0).item())
+        if not self.was_on:
+            torch.set_flush_denormal(True)
+
+    def __exit__(self, *exc: object) -> None:
+        if not self.was_on:
+            torch.set_flush_denormal(False)

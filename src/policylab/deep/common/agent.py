@@ -188,6 +188,7 @@ class Agent(ABC):
         self._ep_return = np.zeros(n)
         self._ep_length = np.zeros(n, dtype=np.int64)
         self._prev_done = np.zeros(n, dtype=bool)
+        self._all_valid = np.ones(n, dtype=bool)
         self._obs = np.asarray(obs)
         return self._obs
 
@@ -206,19 +207,30 @@ class Agent(ABC):
         if isinstance(self.action_space, gym.spaces.Box):
             env_actions = np.clip(actions, self.action_space.low, self.action_space.high)
         next_obs, rew, term, trunc, _ = self.envs.step(env_actions)
-        valid = ~self._prev_done
         rew = np.asarray(rew, dtype=np.float64)
-        term, trunc = np.asarray(term, dtype=bool) & valid, np.asarray(trunc, dtype=bool) & valid
-        self._ep_return[valid] += rew[valid]
-        self._ep_length[valid] += 1
+        term, trunc = np.asarray(term, dtype=bool), np.asarray(trunc, dtype=bool)
+        prev_done = self._prev_done
+        if prev_done.any():  # the envs that only reset on this step
+            valid = ~prev_done
+            term, trunc = term & valid, trunc & valid
+            self._ep_return[valid] += rew[valid]
+            self._ep_length[valid] += 1
+            self.num_timesteps += int(valid.sum())
+        else:  # every env took a step: whole-array updates
+            valid = self._all_valid
+            if len(valid) != len(rew):
+                valid = self._all_valid = np.ones(len(rew), dtype=bool)
+            self._ep_return += rew
+            self._ep_length += 1
+            self.num_timesteps += len(rew)
         done = term | trunc
-        for i in np.flatnonzero(done):
-            self.recent_returns.append(float(self._ep_return[i]))
-            self.episodes += 1
-        self._ep_return[done] = 0.0
-        self._ep_length[done] = 0
+        if done.any():
+            for i in np.flatnonzero(done):
+                self.recent_returns.append(float(self._ep_return[i]))
+                self.episodes += 1
+            self._ep_return[done] = 0.0
+            self._ep_length[done] = 0
         self._prev_done = done
-        self.num_timesteps += int(valid.sum())
         self._obs = next_obs
         return next_obs, rew, term, trunc, valid
 

@@ -265,13 +265,16 @@ class FlatParameters:
 
         g <- g * min(1, max_norm / (||g||_2 + 1e-6)), the arithmetic of
         :func:`~policylab.deep.common.networks.clip_grad_norm` on the one tensor (the
-        same kernels, so the same numbers), without its per-call list handling and
-        without reading the norm back into Python: it returns the norm before clipping
-        as a 0-d tensor.
+        same kernels, so the same numbers), without its per-call list handling. A norm
+        clearly below ``max_norm`` (by a relative 1e-5, far more than float32 rounding)
+        makes the factor exactly 1, and the multiplication is skipped. Returns the norm
+        before clipping as a 0-d tensor.
         """
         grad = self.flat.grad
         assert grad is not None
         norm = torch._foreach_norm([grad])[0]
+        if float(norm) + 1e-6 <= max_norm * (1.0 - 1e-5):
+            return norm
         grad.mul_(torch.clamp(max_norm / (norm + 1e-6), max=1.0))
         return norm
 

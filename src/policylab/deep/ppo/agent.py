@@ -118,8 +118,7 @@ class PPO(Agent):
         self.reward_scaler = RewardScaler(cfg.n_envs, cfg.gamma) if cfg.normalize_reward else None
 
     def _act(self, obs: torch.Tensor, deterministic: bool) -> NDArray[Any]:
-        a, _, _ = self.net.sample(obs, self.torch_gen, deterministic)
-        out = a.numpy()
+        out = self._sample(obs.numpy(), deterministic)[0]
         if isinstance(self.action_space, gym.spaces.Box):
             out = np.clip(out, self.action_space.low, self.action_space.high)
         return out
@@ -133,17 +132,27 @@ class PPO(Agent):
         while not buf.full:
             valid = ~self._prev_done
             x = self._prepare(obs, update=True)
-            with torch.inference_mode():
-                a, logp, v = self.net.sample(torch.as_tensor(x), self.torch_gen)
-            actions = a.numpy()
-            buf.add(x, actions, logp.numpy(), v.numpy(), valid)
+            actions, logp, v = self._sample(x, False)
+            buf.add(x, actions, logp, v, valid)
             obs, rew, term, trunc, _ = self._env_step(actions)
             if self.reward_scaler is not None:
                 rew = self.reward_scaler(rew, term | trunc)
             buf.add_outcome(rew, term, trunc)
+        buf.compute_advantages(self._sample(self._prepare(obs), True)[2], cfg.gamma, cfg.gae_lambda)
+
+    def _sample(
+        self, x: NDArray[Any], deterministic: bool
+    ) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any]]:
+        """Actions, their log-probabilities and V(s) for prepared observations (NumPy).
+
+        MLP networks act in NumPy (:meth:`ActorCritic.sample_numpy`, drawing from the
+        agent's generator), others through torch (drawing from its torch generator).
+        """
+        if self.net.by_hand:
+            return self.net.sample_numpy(x, self.rng, deterministic)
         with torch.inference_mode():
-            last_v = self.net.value(torch.as_tensor(self._prepare(obs))).numpy()
-        buf.compute_advantages(last_v, cfg.gamma, cfg.gae_lambda)
+            a, logp, v = self.net.sample(torch.as_tensor(x), self.torch_gen, deterministic)
+        return a.numpy(), logp.numpy(), v.numpy()
 
     def _iteration(self) -> dict[str, float]:
         cfg = self.config

@@ -17,6 +17,7 @@ from policylab.deep.common.mlp_grad import FlatParameters, fused_adam_step
 from policylab.deep.common.networks import clip_grad_norm
 from policylab.deep.common.normalize import RewardScaler
 from policylab.deep.ppo.losses import (
+    approx_kl,
     clipped_surrogate_loss,
     clipped_surrogate_loss_grad,
     normalized,
@@ -174,7 +175,9 @@ class PPO(Agent):
             np.stack([buf.flat(k) for k in ("log_probs", "values", "advantages", "returns")], 1)
         )
         vclip = cfg.clip_range_vf or None
-        stats: list[torch.Tensor] = []  # one row per minibatch, read once at the end
+        losses: list[torch.Tensor] = []  # per minibatch, read once at the end
+        ratios: list[torch.Tensor] = []
+        log_ratios: list[torch.Tensor] = []
         for _ in range(cfg.n_epochs):
             for mb in buf.minibatches(cfg.batch_size, self.rng):
                 i = torch.from_numpy(mb)
@@ -207,15 +210,17 @@ class PPO(Agent):
                     clip_grad_norm(self._params, cfg.max_grad_norm)
                     self.optimizer.step()
                 self.n_updates += 1
-                with torch.no_grad():
-                    approx_kl = ((ratio - 1) - log_ratio).mean()
-                    clip_fraction = ((ratio - 1).abs() > cfg.clip_range).float().mean()
-                    stats.append(torch.stack([pg_loss, v_loss, ent, approx_kl, clip_fraction]))
-            if cfg.target_kl and float(stats[-1][3]) > cfg.target_kl:
+                losses += (pg_loss.detach(), v_loss.detach(), ent.detach())
+                ratios.append(ratio.detach())
+                log_ratios.append(log_ratio.detach())
+            if cfg.target_kl and float(approx_kl(ratios[-1], log_ratios[-1])) > cfg.target_kl:
                 break
-        means = torch.stack(stats).double().mean(0).tolist()
+        means = torch.stack(losses).view(-1, 3).double().mean(0).tolist()
+        ratio, log_ratio = torch.cat(ratios), torch.cat(log_ratios)
+        clip_fraction = ((ratio - 1).abs() > cfg.clip_range).double().mean()
         names = ("policy_loss", "value_loss", "entropy", "approx_kl", "clip_fraction")
-        return dict(zip(names, means, strict=True))
+        values = [*means, float(approx_kl(ratio, log_ratio)), float(clip_fraction)]
+        return dict(zip(names, values, strict=True))
 
     def _state_tensors(self, training_state: bool) -> dict[str, Any]:
         state: dict[str, Any] = {"net": self.net.state_dict()}

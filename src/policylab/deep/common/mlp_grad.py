@@ -174,7 +174,7 @@ class NumpyMLP:
     def __call__(self, x: Any) -> Any:
         """The MLP's output for a batch ``x`` (a NumPy array, first axis the batch)."""
         views = self._arrays()
-        h = np.asarray(x, dtype=np.float32).reshape(len(x), -1)
+        h = np.asarray(x, dtype=np.float32).reshape(len(x), self.params[0][0].shape[1])
         last = len(views) - 1
         for i, (w_t, b) in enumerate(views):
             h = h @ w_t

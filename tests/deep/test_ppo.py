@@ -221,9 +221,7 @@ def test_checkpoint_with_per_parameter_optimizer_state_still_loads(tmp_path: Pat
     assert back.optimizer.state_dict()["state"][0]["exp_avg"].shape == (sum(sizes),)
 
 
-@pytest.mark.parametrize(
-    "action_space", [gym.spaces.Discrete(3), gym.spaces.Box(-1.0, 1.0, (2,))]
-)
+@pytest.mark.parametrize("action_space", [gym.spaces.Discrete(3), gym.spaces.Box(-1.0, 1.0, (2,))])
 def test_numpy_sampling_draws_from_the_policy_with_its_log_probabilities(
     action_space: gym.Space[Any],
 ) -> None:

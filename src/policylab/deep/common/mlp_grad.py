@@ -128,7 +128,7 @@ def mlp_forward(
 
 
 def _affine(h: torch.Tensor, w: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """z = h W^T + b, in the orientation BLAS runs fastest.
+    """The affine map z = h W^T + b, in the orientation BLAS runs fastest.
 
     A layer with a few outputs (a Q-head over 2-4 actions, a policy head) on a batch
     runs about twice as fast as (W h^T + b)^T than as h W^T + b (a (128, 256) batch

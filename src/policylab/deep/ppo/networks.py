@@ -8,9 +8,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import torch
-from torch import nn
-
 from numpy.typing import NDArray
+from torch import nn
 
 from policylab.deep.common.mlp_grad import NumpyMLP, mlp_backward, mlp_forward, mlp_layers
 from policylab.deep.common.networks import build_torso, init_layer, is_image_space, torso_width

@@ -265,17 +265,19 @@ class FlatParameters:
 
         g <- g * min(1, max_norm / (||g||_2 + 1e-6)), the arithmetic of
         :func:`~policylab.deep.common.networks.clip_grad_norm` on the one tensor (the
-        same kernels, so the same numbers), without its per-call list handling. A norm
-        clearly below ``max_norm`` (by a relative 1e-5, far more than float32 rounding)
-        makes the factor exactly 1, and the multiplication is skipped. Returns the norm
-        before clipping as a 0-d tensor.
+        same numbers), without its per-call list handling. The factor is computed from
+        the norm read back as a Python number, in float32 as torch computes it (the sum,
+        the reciprocal, the product and the minimum, each rounded to float32), and the
+        multiplication is skipped where the factor is exactly 1. Returns the norm before
+        clipping as a 0-d tensor.
         """
         grad = self.flat.grad
         assert grad is not None
         norm = torch._foreach_norm([grad])[0]
-        if float(norm) + 1e-6 <= max_norm * (1.0 - 1e-5):
-            return norm
-        grad.mul_(torch.clamp(max_norm / (norm + 1e-6), max=1.0))
+        f32 = np.float32
+        coef = f32(1.0) / (f32(float(norm)) + f32(1e-6)) * f32(max_norm)
+        if coef < 1.0:
+            grad.mul_(float(coef))
         return norm
 
     def state_from_per_parameter(

@@ -257,3 +257,25 @@ def test_numpy_sampling_draws_from_the_policy_with_its_log_probabilities(
 def mlp_out(net: ActorCritic, obs: torch.Tensor) -> torch.Tensor:
     """The policy head's output o (logits or means) for a batch."""
     return net.policy_head(net.actor_torso(obs))
+
+
+def test_whole_rollout_minibatch_gathered_once_equals_gathering_every_epoch() -> None:
+    # a minibatch holding every stored step is gathered once and reused in each epoch;
+    # gathering it afresh in each epoch's order gives the same update (up to rounding)
+    class NoWhole(np.ndarray):
+        def sum(self, *args: Any, **kwargs: Any) -> Any:  # never "every step"
+            return np.int64(-1)
+
+    def agent() -> pl.deep.PPO:
+        a = pl.deep.PPO("CartPole-v1", n_envs=4, n_steps=32, batch_size=128, n_epochs=5, seed=2)
+        a.learn(128)  # one rollout and one update
+        a._collect()
+        return a
+
+    fast, slow = agent(), agent()
+    slow.buffer.valid = slow.buffer.valid.view(NoWhole)
+    fast._update()
+    slow._update()
+    for p, q in zip(fast.net.parameters(), slow.net.parameters(), strict=True):
+        torch.testing.assert_close(p, q, rtol=1e-5, atol=1e-6)
+    assert fast.rng.random() == slow.rng.random()  # the same draws

@@ -178,13 +178,22 @@ class PPO(Agent):
         losses: list[torch.Tensor] = []  # per minibatch, read once at the end
         ratios: list[torch.Tensor] = []
         log_ratios: list[torch.Tensor] = []
+        # a minibatch that holds every stored step is the same set in every epoch (only
+        # its order differs, and the loss is a mean over it): gathered once
+        n_valid, whole = int(buf.valid.sum()), None
         for _ in range(cfg.n_epochs):
             for mb in buf.minibatches(cfg.batch_size, self.rng):
-                i = torch.from_numpy(mb)
-                old_logp, old_v, advantages, returns = scalars[i].unbind(1)
-                adv = normalized(advantages) if cfg.normalize_advantage else advantages
+                if whole is None or len(mb) != n_valid:
+                    i = torch.from_numpy(mb)
+                    old_logp, old_v, advantages, returns = scalars[i].unbind(1)
+                    adv = normalized(advantages) if cfg.normalize_advantage else advantages
+                    mb_obs, mb_actions = obs[i], actions[i]
+                    if len(mb) == n_valid:
+                        whole = (old_logp, old_v, adv, returns, mb_obs, mb_actions)
+                else:
+                    old_logp, old_v, adv, returns, mb_obs, mb_actions = whole
                 if self.net.by_hand:  # every gradient is overwritten: no zero_grad
-                    logp, entropy, v, cache = self.net.forward_cached(obs[i], actions[i])
+                    logp, entropy, v, cache = self.net.forward_cached(mb_obs, mb_actions)
                     log_ratio = logp - old_logp
                     ratio = log_ratio.exp()
                     pg_loss, g_ratio = clipped_surrogate_loss_grad(ratio, adv, cfg.clip_range)
@@ -195,7 +204,7 @@ class PPO(Agent):
                     )
                 else:
                     self.optimizer.zero_grad(set_to_none=True)
-                    logp, entropy, v = self.net.evaluate_actions(obs[i], actions[i])
+                    logp, entropy, v = self.net.evaluate_actions(mb_obs, mb_actions)
                     log_ratio = logp - old_logp
                     ratio = log_ratio.exp()
                     pg_loss = clipped_surrogate_loss(ratio, adv, cfg.clip_range)

@@ -42,6 +42,7 @@ import numpy as np
 import torch
 
 import policylab as pl
+from policylab.deep.common.envs import is_atari_id
 from policylab.deep.common.evaluation import run_episodes
 from policylab.deep.zoo import zoo_settings
 
@@ -142,7 +143,7 @@ def run_sb3(algo: str, env_id: str, seed: int, full_budget: bool = True) -> Resu
 
     budget = int(zoo_settings(algo, env_id)["steps"])
     res = Result("SB3", algo, env_id, seed, budget)
-    model = _make_sb3(algo, env_id, seed, anneal_clip=True)
+    model = _make_sb3(algo, env_id, seed, anneal_clip=True, per_step=False)
     venv = model.get_env()
     normalize = bool(zoo_settings(algo, env_id).get("normalize", False))
     every, thr = EVAL_EVERY[env_id], THRESHOLD[env_id]
@@ -240,7 +241,19 @@ PER_STEP_STEPS = {
     ("dqn", "Acrobot-v1"): 4_000,
     ("ppo", "LunarLander-v3"): 65_536,
     ("dqn", "LunarLander-v3"): 8_000,
+    ("ppo", "ALE/Pong-v5"): 4_096,
+    ("dqn", "ALE/Pong-v5"): 3_000,
 }
+
+# A short Atari run never reaches the zoo's 100k steps of DQN warm-up: both libraries
+# start learning after 1,000 steps instead, with a buffer sized to the run.
+PER_STEP_OVERRIDES = {("dqn", "atari"): {"learning_starts": 1_000, "buffer_size": 10_000}}
+
+
+def _per_step_overrides(algo: str, env_id: str) -> dict[str, Any]:
+    key = "atari" if is_atari_id(env_id) else env_id
+    return dict(PER_STEP_OVERRIDES.get((algo, key), {}))
+
 
 # Where each library spends a step, by the functions a profile charges it to:
 # (file path fragment, function name). "act" is the env step plus the policy's forward
@@ -249,7 +262,7 @@ PER_STEP_STEPS = {
 _PHASES: dict[tuple[str, str], dict[str, list[tuple[str, str]]]] = {
     ("policylab", "ppo"): {
         "env": [],  # the outermost step of the agent's vector env, found at run time
-        "forward": [("policylab/deep/ppo/networks.py", "sample")],
+        "forward": [("policylab/deep/ppo/agent.py", "_sample")],
         "update": [("policylab/deep/ppo/agent.py", "_update")],
     },
     ("policylab", "dqn"): {
@@ -284,25 +297,38 @@ def identical_settings(algo: str, env_id: str) -> dict[str, Any]:
     return fields
 
 
-def _make_policylab(algo: str, env_id: str, seed: int) -> Any:
-    return pl.deep.ALGORITHMS[algo](env_id, seed=seed, **identical_settings(algo, env_id))
+def _make_policylab(algo: str, env_id: str, seed: int, per_step: bool = True) -> Any:
+    fields = identical_settings(algo, env_id)
+    if per_step:
+        fields.update(_per_step_overrides(algo, env_id))
+    return pl.deep.ALGORITHMS[algo](env_id, seed=seed, **fields)
 
 
-def _make_sb3(algo: str, env_id: str, seed: int, anneal_clip: bool = False) -> Any:
+def _make_sb3(
+    algo: str, env_id: str, seed: int, anneal_clip: bool = False, per_step: bool = True
+) -> Any:
     """SB3's agent with the zoo's settings; ``anneal_clip`` also anneals PPO's clip range
     where the zoo anneals the learning rate (the zoo's recommended ``lin_`` schedules;
-    policylab anneals only the learning rate, so the per-step comparison leaves it)."""
+    policylab anneals only the learning rate, so the per-step comparison leaves it).
+    An Atari game gets policylab's own env (``pl.deep.make_env``: the same no-op starts,
+    frame skip, 84x84 grey frames and stack of 4) and SB3's ``CnnPolicy``."""
     from stable_baselines3 import DQN, PPO
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import VecNormalize
 
     z = zoo_settings(algo, env_id)
+    if per_step:
+        z.update(_per_step_overrides(algo, env_id))
     z.pop("steps")
     normalize = z.pop("normalize", False)
     n_envs = int(z.pop("n_envs", 1))
     hidden = z.pop("hidden", None)
     anneal = z.pop("anneal_lr", False)
-    venv = make_vec_env(env_id, n_envs=n_envs, seed=seed)
+    atari = is_atari_id(env_id)
+    venv = make_vec_env(
+        partial(pl.deep.make_env, env_id) if atari else env_id, n_envs=n_envs, seed=seed
+    )
+    policy = "CnnPolicy" if atari else "MlpPolicy"
     if normalize:
         venv = VecNormalize(venv, gamma=z.get("gamma", 0.99))
     kwargs: dict[str, Any] = dict(z)
@@ -311,10 +337,10 @@ def _make_sb3(algo: str, env_id: str, seed: int, anneal_clip: bool = False) -> A
         kwargs["learning_rate"] = _linear(lr) if anneal else lr
         if anneal and anneal_clip:
             kwargs["clip_range"] = _linear(kwargs.get("clip_range", 0.2))
-        return PPO("MlpPolicy", venv, seed=seed, device="cpu", **kwargs)
+        return PPO(policy, venv, seed=seed, device="cpu", **kwargs)
     if hidden is not None:
         kwargs["policy_kwargs"] = {"net_arch": list(hidden)}
-    return DQN("MlpPolicy", venv, seed=seed, device="cpu", **kwargs)
+    return DQN(policy, venv, seed=seed, device="cpu", **kwargs)
 
 
 @dataclass

@@ -163,3 +163,27 @@ def test_acting_without_forward_pass_draws_as_before() -> None:
     assert explore.all()
     np.testing.assert_array_equal(got, rng.integers(0, 2, 5))
     assert agent.rng.random() == rng.random()
+
+
+def test_numpy_greedy_actions_equal_the_network_argmax() -> None:
+    agent = pl.deep.DQN("CartPole-v1", hidden=(64, 64), seed=4)
+    obs = torch.as_tensor(np.random.default_rng(0).normal(size=(64, 4)).astype(np.float32))
+    with torch.no_grad():
+        q = agent.q(obs)
+    gap = q.sort(1).values.diff(dim=1).abs().min()
+    assert gap > 1e-4  # no near-ties, where rounding could pick the other action
+    np.testing.assert_array_equal(agent._greedy(obs), q.argmax(1).numpy())
+    np.testing.assert_array_equal(agent.predict(obs.numpy()), q.argmax(1).numpy())
+
+
+def test_training_flushes_subnormal_numbers_and_restores_the_mode() -> None:
+    tiny = torch.tensor([1e-39])
+    seen: list[float] = []
+
+    def probe(a: pl.deep.Agent, _: dict[str, float]) -> bool:
+        seen.append(float(tiny * 1.0))
+        return False
+
+    pl.deep.DQN("CartPole-v1", hidden=(8,), learning_starts=10).learn(100, callback=probe)
+    assert seen == [0.0]  # inside learn: flushed to zero
+    assert float(tiny * 1.0) > 0.0  # after: subnormals again

@@ -122,3 +122,41 @@ def test_fused_adam_step_and_flat_clip_equal_the_optimizer_bit_for_bit() -> None
             o.param_groups[0]["lr"] = 1e-2 * (1 - i / 6)  # an annealed rate is read each step
     s1, s2 = o1.state_dict()["state"][0], o2.state_dict()["state"][0]
     assert all(torch.equal(s1[k], s2[k]) for k in ("step", "exp_avg", "exp_avg_sq"))
+
+
+@pytest.mark.parametrize("act", ["tanh", "relu", "elu"])
+def test_numpy_forward_equals_mlp_forward_and_follows_the_parameters(act: str) -> None:
+    import numpy as np
+
+    from policylab.deep.common.mlp_grad import NumpyMLP
+
+    g = torch.Generator().manual_seed(1)
+    net = nn.Sequential(build_torso(gym.spaces.Box(-1, 1, (3,)), (16, 8), act, g), nn.Linear(8, 3))
+    chain = mlp_layers(net)
+    assert chain is not None
+    fwd = NumpyMLP(chain, act)
+    x = torch.randn(5, 3, generator=g)
+    torch.testing.assert_close(
+        torch.from_numpy(fwd(x.numpy())), mlp_forward(chain, act, x)[0], rtol=1e-6, atol=1e-6
+    )
+    with torch.no_grad():  # an in-place update (an optimizer step) is seen
+        chain[1].weight.mul_(-2.0)
+    flat = FlatParameters(list(net.parameters()))  # and so is memory that moved
+    with torch.no_grad():
+        flat.flat.add_(0.1)
+    expected = mlp_forward(chain, act, x)[0]
+    torch.testing.assert_close(torch.from_numpy(fwd(x.numpy())), expected, rtol=1e-6, atol=1e-6)
+    assert fwd(np.zeros((0, 3), np.float32)).shape == (0, 3)
+
+
+def test_narrow_output_layer_equals_the_plain_product() -> None:
+    # a 2-4 output layer on a batch is computed as (W h^T + b)^T: the same numbers
+    g = torch.Generator().manual_seed(2)
+    net = nn.Sequential(nn.Linear(6, 32), nn.ReLU(), nn.Linear(32, 3))
+    chain = mlp_layers(net)
+    assert chain is not None
+    for batch in (1, 31, 32, 200):
+        x = torch.randn(batch, 6, generator=g)
+        out = mlp_forward(chain, "relu", x)[0]
+        assert out.is_contiguous() and out.shape == (batch, 3)
+        torch.testing.assert_close(out, net(x).detach(), rtol=1e-6, atol=1e-6)

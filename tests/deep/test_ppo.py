@@ -219,3 +219,63 @@ def test_checkpoint_with_per_parameter_optimizer_state_still_loads(tmp_path: Pat
     agent.save(tmp_path / "a.pt", training_state=True)
     back = pl.deep.PPO.load(tmp_path / "a.pt")
     assert back.optimizer.state_dict()["state"][0]["exp_avg"].shape == (sum(sizes),)
+
+
+@pytest.mark.parametrize("action_space", [gym.spaces.Discrete(3), gym.spaces.Box(-1.0, 1.0, (2,))])
+def test_numpy_sampling_draws_from_the_policy_with_its_log_probabilities(
+    action_space: gym.Space[Any],
+) -> None:
+    g = torch.Generator().manual_seed(0)
+    net = ActorCritic(gym.spaces.Box(-1.0, 1.0, (4,)), action_space, (16, 16), "tanh", -0.5, g)
+    with torch.no_grad():  # a policy far from uniform
+        net.policy_head.weight.mul_(300.0)
+    obs = torch.randn(6, 4, generator=g)
+    rng = np.random.default_rng(0)
+    a, logp, v = net.sample_numpy(obs.numpy(), rng)
+    with torch.no_grad():
+        want_logp, _, want_v = net.evaluate_actions(obs, torch.as_tensor(a))
+        mode = net.sample(obs, None, deterministic=True)[0]
+    np.testing.assert_allclose(logp, want_logp.numpy(), rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(v, want_v.numpy(), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(
+        net.sample_numpy(obs.numpy(), rng, deterministic=True)[0], mode.numpy(), atol=1e-6
+    )
+    # many draws at one state follow pi(. | s): frequencies or mean and std
+    many = np.repeat(obs[:1].numpy(), 40_000, axis=0)
+    draws = net.sample_numpy(many, rng)[0]
+    if isinstance(action_space, gym.spaces.Discrete):
+        with torch.no_grad():
+            probs = torch.softmax(mlp_out(net, obs[:1]), -1)[0].numpy()
+        freq = np.bincount(draws, minlength=3) / len(draws)
+        np.testing.assert_allclose(freq, probs, atol=4 * np.sqrt(0.25 / len(draws)))
+    else:
+        std = float(np.exp(-0.5))
+        np.testing.assert_allclose(draws.mean(0), mode[0].numpy(), atol=4 * std / 200)
+        np.testing.assert_allclose(draws.std(0), [std, std], rtol=0.02)
+
+
+def mlp_out(net: ActorCritic, obs: torch.Tensor) -> torch.Tensor:
+    """The policy head's output o (logits or means) for a batch."""
+    return net.policy_head(net.actor_torso(obs))
+
+
+def test_whole_rollout_minibatch_gathered_once_equals_gathering_every_epoch() -> None:
+    # a minibatch holding every stored step is gathered once and reused in each epoch;
+    # gathering it afresh in each epoch's order gives the same update (up to rounding)
+    class NoWhole(np.ndarray):
+        def sum(self, *args: Any, **kwargs: Any) -> Any:  # never "every step"
+            return np.int64(-1)
+
+    def agent() -> pl.deep.PPO:
+        a = pl.deep.PPO("CartPole-v1", n_envs=4, n_steps=32, batch_size=128, n_epochs=5, seed=2)
+        a.learn(128)  # one rollout and one update
+        a._collect()
+        return a
+
+    fast, slow = agent(), agent()
+    slow.buffer.valid = slow.buffer.valid.view(NoWhole)
+    fast._update()
+    slow._update()
+    for p, q in zip(fast.net.parameters(), slow.net.parameters(), strict=True):
+        torch.testing.assert_close(p, q, rtol=1e-5, atol=1e-6)
+    assert fast.rng.random() == slow.rng.random()  # the same draws

@@ -88,6 +88,14 @@ class ReplayBuffer:
     ) -> NDArray[np.int64]:
         """Store a batch of transitions (first axis); return the slots they went to."""
         k = len(returns)
+        if self.pos + k <= self.capacity:  # no wrap-around: slices, cheaper than indices
+            idx = np.arange(self.pos, self.pos + k)
+            s = slice(self.pos, self.pos + k)
+            self.obs[s], self.next_obs[s], self.actions[s] = obs, next_obs, actions
+            self.returns[s], self.discounts[s] = returns, discounts
+            self.pos = (self.pos + k) % self.capacity
+            self.size = min(self.size + k, self.capacity)
+            return idx
         idx = (self.pos + np.arange(k)) % self.capacity
         self.obs[idx] = obs
         self.next_obs[idx] = next_obs
@@ -278,9 +286,11 @@ class NStepWindow:
         carries no transition).
         """
         if self.n == 1:  # the common case, vectorised
+            disc = np.where(terminated, 0.0, self.gamma)
+            if valid.all():  # no env only reset: every step is a transition
+                return obs, actions, rewards, next_obs, disc
             if not valid.any():
                 return None
-            disc = np.where(terminated, 0.0, self.gamma)
             return obs[valid], actions[valid], rewards[valid], next_obs[valid], disc[valid]
         out: list[tuple[Any, Any, float, Any, float]] = []
         for i in np.flatnonzero(valid):

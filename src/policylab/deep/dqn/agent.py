@@ -16,6 +16,7 @@ from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check, check_replay_settings, documented, option
 from policylab.deep.common.mlp_grad import (
     FlatParameters,
+    NumpyMLP,
     fused_adam_step,
     mlp_backward,
     mlp_forward,
@@ -111,6 +112,8 @@ class DQN(Agent):
         self._flat = FlatParameters(list(self.q.parameters())) if self.q.chain else None
         self._params = [self._flat.flat] if self._flat else list(self.q.parameters())
         self.optimizer = torch.optim.Adam(self._params, lr=cfg.learning_rate, fused=True)
+        # acting on a few observations: the forward pass in NumPy (see NumpyMLP)
+        self._np_q = NumpyMLP(self.q.chain, cfg.activation) if self.q.chain else None
         shape = tuple(self.observation_space.shape or ())
         obs_dtype = np.uint8 if self.observation_space.dtype == np.uint8 else np.float32
         if cfg.prioritized:
@@ -142,14 +145,19 @@ class DQN(Agent):
 
     def _act(self, obs: torch.Tensor, deterministic: bool) -> NDArray[Any]:
         if deterministic:
-            return self.q(obs).argmax(dim=1).numpy()  # type: ignore[no-any-return]
+            return self._greedy(obs)
         n = len(obs)
         explore = self.rng.random(n) < self.epsilon
         random_actions = self.rng.integers(0, self.n_actions, n)
         if explore.all():  # no greedy action is needed: skip the forward pass
             return random_actions
-        greedy: NDArray[Any] = self.q(obs).argmax(dim=1).numpy()
-        return np.where(explore, random_actions, greedy)
+        return np.where(explore, random_actions, self._greedy(obs))
+
+    def _greedy(self, obs: torch.Tensor) -> NDArray[Any]:
+        """argmax_a Q(s, a) for a batch (NumPy's forward pass for up to 64 observations)."""
+        if self._np_q is not None and len(obs) <= 64:
+            return self._np_q(obs.numpy()).argmax(1)  # type: ignore[no-any-return]
+        return self.q(obs).argmax(dim=1).numpy()  # type: ignore[no-any-return]
 
     def _iteration(self) -> dict[str, float]:
         cfg = self.config

@@ -17,6 +17,7 @@ from policylab.deep.common.mlp_grad import FlatParameters, fused_adam_step
 from policylab.deep.common.networks import clip_grad_norm
 from policylab.deep.common.normalize import RewardScaler
 from policylab.deep.ppo.losses import (
+    approx_kl,
     clipped_surrogate_loss,
     clipped_surrogate_loss_grad,
     normalized,
@@ -118,8 +119,7 @@ class PPO(Agent):
         self.reward_scaler = RewardScaler(cfg.n_envs, cfg.gamma) if cfg.normalize_reward else None
 
     def _act(self, obs: torch.Tensor, deterministic: bool) -> NDArray[Any]:
-        a, _, _ = self.net.sample(obs, self.torch_gen, deterministic)
-        out = a.numpy()
+        out = self._sample(obs.numpy(), deterministic)[0]
         if isinstance(self.action_space, gym.spaces.Box):
             out = np.clip(out, self.action_space.low, self.action_space.high)
         return out
@@ -133,17 +133,27 @@ class PPO(Agent):
         while not buf.full:
             valid = ~self._prev_done
             x = self._prepare(obs, update=True)
-            with torch.inference_mode():
-                a, logp, v = self.net.sample(torch.as_tensor(x), self.torch_gen)
-            actions = a.numpy()
-            buf.add(x, actions, logp.numpy(), v.numpy(), valid)
+            actions, logp, v = self._sample(x, False)
+            buf.add(x, actions, logp, v, valid)
             obs, rew, term, trunc, _ = self._env_step(actions)
             if self.reward_scaler is not None:
                 rew = self.reward_scaler(rew, term | trunc)
             buf.add_outcome(rew, term, trunc)
+        buf.compute_advantages(self._sample(self._prepare(obs), True)[2], cfg.gamma, cfg.gae_lambda)
+
+    def _sample(
+        self, x: NDArray[Any], deterministic: bool
+    ) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any]]:
+        """Actions, their log-probabilities and V(s) for prepared observations (NumPy).
+
+        MLP networks act in NumPy (:meth:`ActorCritic.sample_numpy`, drawing from the
+        agent's generator), others through torch (drawing from its torch generator).
+        """
+        if self.net.by_hand:
+            return self.net.sample_numpy(x, self.rng, deterministic)
         with torch.inference_mode():
-            last_v = self.net.value(torch.as_tensor(self._prepare(obs))).numpy()
-        buf.compute_advantages(last_v, cfg.gamma, cfg.gae_lambda)
+            a, logp, v = self.net.sample(torch.as_tensor(x), self.torch_gen, deterministic)
+        return a.numpy(), logp.numpy(), v.numpy()
 
     def _iteration(self) -> dict[str, float]:
         cfg = self.config
@@ -165,14 +175,25 @@ class PPO(Agent):
             np.stack([buf.flat(k) for k in ("log_probs", "values", "advantages", "returns")], 1)
         )
         vclip = cfg.clip_range_vf or None
-        stats: list[torch.Tensor] = []  # one row per minibatch, read once at the end
+        losses: list[torch.Tensor] = []  # per minibatch, read once at the end
+        ratios: list[torch.Tensor] = []
+        log_ratios: list[torch.Tensor] = []
+        # a minibatch that holds every stored step is the same set in every epoch (only
+        # its order differs, and the loss is a mean over it): gathered once
+        n_valid, whole = int(buf.valid.sum()), None
         for _ in range(cfg.n_epochs):
             for mb in buf.minibatches(cfg.batch_size, self.rng):
-                i = torch.from_numpy(mb)
-                old_logp, old_v, advantages, returns = scalars[i].unbind(1)
-                adv = normalized(advantages) if cfg.normalize_advantage else advantages
+                if whole is None or len(mb) != n_valid:
+                    i = torch.from_numpy(mb)
+                    old_logp, old_v, advantages, returns = scalars[i].unbind(1)
+                    adv = normalized(advantages) if cfg.normalize_advantage else advantages
+                    mb_obs, mb_actions = obs[i], actions[i]
+                    if len(mb) == n_valid:
+                        whole = (old_logp, old_v, adv, returns, mb_obs, mb_actions)
+                else:
+                    old_logp, old_v, adv, returns, mb_obs, mb_actions = whole
                 if self.net.by_hand:  # every gradient is overwritten: no zero_grad
-                    logp, entropy, v, cache = self.net.forward_cached(obs[i], actions[i])
+                    logp, entropy, v, cache = self.net.forward_cached(mb_obs, mb_actions)
                     log_ratio = logp - old_logp
                     ratio = log_ratio.exp()
                     pg_loss, g_ratio = clipped_surrogate_loss_grad(ratio, adv, cfg.clip_range)
@@ -183,7 +204,7 @@ class PPO(Agent):
                     )
                 else:
                     self.optimizer.zero_grad(set_to_none=True)
-                    logp, entropy, v = self.net.evaluate_actions(obs[i], actions[i])
+                    logp, entropy, v = self.net.evaluate_actions(mb_obs, mb_actions)
                     log_ratio = logp - old_logp
                     ratio = log_ratio.exp()
                     pg_loss = clipped_surrogate_loss(ratio, adv, cfg.clip_range)
@@ -198,15 +219,17 @@ class PPO(Agent):
                     clip_grad_norm(self._params, cfg.max_grad_norm)
                     self.optimizer.step()
                 self.n_updates += 1
-                with torch.no_grad():
-                    approx_kl = ((ratio - 1) - log_ratio).mean()
-                    clip_fraction = ((ratio - 1).abs() > cfg.clip_range).float().mean()
-                    stats.append(torch.stack([pg_loss, v_loss, ent, approx_kl, clip_fraction]))
-            if cfg.target_kl and float(stats[-1][3]) > cfg.target_kl:
+                losses += (pg_loss.detach(), v_loss.detach(), ent.detach())
+                ratios.append(ratio.detach())
+                log_ratios.append(log_ratio.detach())
+            if cfg.target_kl and float(approx_kl(ratios[-1], log_ratios[-1])) > cfg.target_kl:
                 break
-        means = torch.stack(stats).double().mean(0).tolist()
+        means = torch.stack(losses).view(-1, 3).double().mean(0).tolist()
+        ratio, log_ratio = torch.cat(ratios), torch.cat(log_ratios)
+        clip_fraction = ((ratio - 1).abs() > cfg.clip_range).double().mean()
         names = ("policy_loss", "value_loss", "entropy", "approx_kl", "clip_fraction")
-        return dict(zip(names, means, strict=True))
+        values = [*means, float(approx_kl(ratio, log_ratio)), float(clip_fraction)]
+        return dict(zip(names, values, strict=True))
 
     def _state_tensors(self, training_state: bool) -> dict[str, Any]:
         state: dict[str, Any] = {"net": self.net.state_dict()}

@@ -5,6 +5,7 @@ from __future__ import annotations
 import torch
 
 __all__ = [
+    "approx_kl",
     "clipped_surrogate_loss",
     "clipped_surrogate_loss_grad",
     "normalized",
@@ -39,6 +40,16 @@ def value_loss(
         return err.mean()
     clipped = old_values + torch.clamp(values - old_values, -clip_range, clip_range)
     return torch.max(err, (clipped - returns) ** 2).mean()
+
+
+def approx_kl(ratio: torch.Tensor, log_ratio: torch.Tensor) -> torch.Tensor:
+    """An estimate of KL(pi_old || pi) from the sampled steps' probability ratios.
+
+    KL ~ E[(r_t - 1) - log r_t], r_t = pi(A_t | S_t) / pi_old(A_t | S_t), over the steps
+    the old policy sampled: unbiased and never negative (log x <= x - 1). In float64.
+    """
+    with torch.no_grad():
+        return ((ratio.double() - 1) - log_ratio.double()).mean()
 
 
 def normalized(x: torch.Tensor, eps: float = 1e-8) -> torch.Tensor:

@@ -8,9 +8,10 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import torch
+from numpy.typing import NDArray
 from torch import nn
 
-from policylab.deep.common.mlp_grad import mlp_backward, mlp_forward, mlp_layers
+from policylab.deep.common.mlp_grad import NumpyMLP, mlp_backward, mlp_forward, mlp_layers
 from policylab.deep.common.networks import build_torso, init_layer, is_image_space, torso_width
 from policylab.exceptions import InvalidArgumentError
 
@@ -73,6 +74,11 @@ class ActorCritic(nn.Module):
         actor = None if self.shared else mlp_layers(self.actor_torso, self.policy_head)
         critic = None if self.shared else mlp_layers(self.critic_torso, self.value_head)
         self._chains = None if actor is None or critic is None else (actor, critic)
+        self._numpy = (
+            None
+            if self._chains is None
+            else (NumpyMLP(self._chains[0], act), NumpyMLP(self._chains[1], act))
+        )
 
     def value(self, obs: torch.Tensor) -> torch.Tensor:
         """V(s) for a batch, shape (B,)."""
@@ -126,6 +132,42 @@ class ActorCritic(nn.Module):
             a = torch.multinomial(torch.softmax(out, -1), 1, generator=generator).squeeze(-1)
         logp, _ = self._log_prob_entropy(out, a)
         return a, logp, v
+
+    def sample_numpy(
+        self, obs: NDArray[Any], rng: np.random.Generator, deterministic: bool = False
+    ) -> tuple[NDArray[Any], NDArray[np.float32], NDArray[np.float32]]:
+        """:meth:`sample` computed in NumPy, drawing from ``rng``, for :attr:`by_hand` networks.
+
+        For the few observations of an acting step (one per env) torch's per-operation
+        dispatch costs more than the arithmetic; both MLPs run as
+        :class:`~policylab.deep.common.mlp_grad.NumpyMLP`. A categorical policy draws
+        A ~ softmax(o) by inverting its cumulative distribution at one uniform draw per
+        observation, with log pi(a | s) = o_a - logsumexp(o); a Gaussian one draws
+        A = mu + sigma z, z ~ N(0, I), with log pi(a | s) = sum_i (-z_i^2 / 2 - log sigma_i
+        - log(2 pi) / 2).
+
+        Returns:
+            (actions, log-probabilities, V(s)) as NumPy arrays.
+        """
+        assert self._numpy is not None
+        actor, critic = self._numpy
+        x = np.asarray(obs, dtype=np.float32)
+        out, v = actor(x), critic(x)[:, 0]
+        if self.continuous:
+            assert self.log_std is not None
+            log_std = self.log_std.detach().numpy()
+            z = np.zeros_like(out) if deterministic else rng.standard_normal(out.shape, np.float32)
+            logp = (-0.5 * z * z - log_std - 0.5 * _LOG_2PI).sum(-1, dtype=np.float32)
+            return out + np.exp(log_std) * z, logp, v
+        m = out.max(-1, keepdims=True)
+        log_pi = out - (m + np.log(np.exp(out - m).sum(-1, keepdims=True)))
+        if deterministic:
+            a = out.argmax(-1)
+        else:
+            cdf = np.cumsum(np.exp(log_pi), -1)
+            u = rng.random(len(out), dtype=np.float32) * cdf[:, -1]
+            a = np.minimum((cdf <= u[:, None]).sum(-1), out.shape[1] - 1)
+        return a, np.take_along_axis(log_pi, a[:, None], -1)[:, 0], v
 
     def evaluate_actions(
         self, obs: torch.Tensor, actions: torch.Tensor

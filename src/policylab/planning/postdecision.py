@@ -27,12 +27,18 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numba import njit, prange
 
 from policylab.exceptions import InvalidArgumentError, NotConvergedWarning
 from policylab.planning._checks import check_positive_int, check_tol, check_v
-from policylab.planning._kernels import _parallel
+from policylab.planning._kernels import (
+    _parallel,
+    component_solver_name,
+    dense_block_max,
+    solve_by_components,
+)
 from policylab.planning._sweeps import run_sweeps
 from policylab.planning.bellman import DEFAULT_TIE_TOL, greedy_policy
 from policylab.planning.result import PlanningResult
@@ -154,9 +160,13 @@ def evaluate_actions(
 ) -> tuple[NDArray[np.float64], dict[str, Any]]:
     """v_pi of a deterministic policy: the solution of v = r_pi + gamma P_pi v, P_pi = K[f(., pi)].
 
-    A dense LU up to :data:`DENSE_EVAL_MAX_STATES` states (the rows K(. | f(s, pi(s)))
-    formed), GMRES on the operator v -> v - gamma (K v)(f(., pi)) above, to a residual of
-    ``tol`` (1 - gamma) (default 1e-10 times the value scale max|r| / (1 - gamma)).
+    With a kernel that is one sparse matrix, one strongly connected component of the
+    policy's graph at a time when each is small (back-substitution, and a dense LU per
+    component whose matrix is no larger than the model:
+    :func:`~policylab.planning._kernels.solve_by_components`); otherwise a dense LU up
+    to :data:`DENSE_EVAL_MAX_STATES` states (the rows K(. | f(s, pi(s))) formed), GMRES
+    on the operator v -> v - gamma (K v)(f(., pi)) above, to a residual of ``tol`` (1 -
+    gamma) (default 1e-10 times the value scale max|r| / (1 - gamma)).
 
     Returns:
         v and an info dict: ``solver``, ``residual`` (||r_pi + gamma P_pi v - v||_inf) and
@@ -165,7 +175,24 @@ def evaluate_actions(
     r_pi, y_pi = _policy_parts(model, actions)
     S = model.n_states
     info: dict[str, Any] = {}
-    if S <= DENSE_EVAL_MAX_STATES:
+    kernel = model.kernel.factors[0] if len(model.kernel.factors) == 1 else None
+    found = (
+        solve_by_components(
+            kernel.indptr,
+            kernel.indices,
+            kernel.data,
+            y_pi,
+            r_pi,
+            gamma,
+            dense_block_max(model.nbytes),
+        )
+        if kernel is not None and sp.issparse(kernel)
+        else None
+    )
+    if found is not None:
+        v, largest = found
+        info["solver"] = component_solver_name(largest, S)
+    elif S <= DENSE_EVAL_MAX_STATES:
         M = -gamma * model.kernel.dense_rows(y_pi)
         M[np.arange(S), np.arange(S)] += 1.0
         v = np.asarray(np.linalg.solve(M, r_pi), dtype=np.float64)

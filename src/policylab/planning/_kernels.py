@@ -753,7 +753,7 @@ def _component_solve(
         if index[root] >= 0:
             continue
         depth = 0
-        u = root
+        u = np.int64(root)
         while True:
             if index[u] < 0:  # enter u
                 index[u] = counter

@@ -27,11 +27,17 @@ measured on families of MDPs, from the problem's size, gamma and structure:
 6. Continuing and large, gamma > 0.99: modified policy iteration with adaptive m
    (partial evaluations carry values further per improvement than single sweeps).
 
-On a :class:`~policylab.mdp.PostDecisionMDP` (a continuing task, gamma < 1) the choice
-is modified policy iteration with adaptive m: a Bellman optimality backup there costs
-one product K v and an (S, A) maximum, a policy's backup the same product and an
-S-long gather, so improvements cost about what evaluation sweeps do and the linear
-solves of policy iteration (GMRES on the same products) do not pay.
+On a :class:`~policylab.mdp.PostDecisionMDP` (a continuing task, gamma < 1):
+
+1. A kernel that is one sparse matrix, and a first policy (greedy in r(s, a)) whose
+   graph splits into small strongly connected components (an inventory: orders cycle
+   only through the low stock levels, and above them the stock only falls): policy
+   iteration, whose exact evaluation is then a back-substitution between the
+   components with a small dense LU for each (no sweeps, no fill-in).
+2. Otherwise modified policy iteration with adaptive m: a Bellman optimality backup
+   there costs one product K v and an (S, A) maximum, a policy's backup the same
+   product and an S-long gather, so improvements cost about what evaluation sweeps do
+   and the linear solves of policy iteration (GMRES on the same products) do not pay.
 
 ``"mpi"`` is modified policy iteration with adaptive m (see
 :func:`~policylab.planning.modified_policy_iteration`).

@@ -150,6 +150,28 @@ def _check_gamma(model: PostDecisionMDP, gamma: float | None) -> float:
     return g
 
 
+def _by_components(
+    model: PostDecisionMDP, y_pi: NDArray[np.int64], r_pi: NDArray[np.float64], gamma: float
+) -> tuple[NDArray[np.float64], int] | None:
+    """v_pi by strongly connected components of the policy's graph (rows K(. | y_pi(s))).
+
+    Only for a kernel that is one sparse matrix; None otherwise, or when a component is
+    too large for its dense LU (see :func:`~policylab.planning._kernels.solve_by_components`).
+    """
+    kernel = model.kernel.factors[0]
+    if len(model.kernel.factors) != 1 or not sp.issparse(kernel):
+        return None
+    return solve_by_components(
+        kernel.indptr,
+        kernel.indices,
+        kernel.data,
+        y_pi,
+        r_pi,
+        gamma,
+        dense_block_max(model.nbytes),
+    )
+
+
 def evaluate_actions(
     model: PostDecisionMDP,
     actions: NDArray[np.int64],
@@ -175,20 +197,7 @@ def evaluate_actions(
     r_pi, y_pi = _policy_parts(model, actions)
     S = model.n_states
     info: dict[str, Any] = {}
-    kernel = model.kernel.factors[0] if len(model.kernel.factors) == 1 else None
-    found = (
-        solve_by_components(
-            kernel.indptr,
-            kernel.indices,
-            kernel.data,
-            y_pi,
-            r_pi,
-            gamma,
-            dense_block_max(model.nbytes),
-        )
-        if kernel is not None and sp.issparse(kernel)
-        else None
-    )
+    found = _by_components(model, y_pi, r_pi, gamma)
     if found is not None:
         v, largest = found
         info["solver"] = component_solver_name(largest, S)
@@ -415,6 +424,17 @@ def policy_iteration(
 def choose_method(model: PostDecisionMDP, gamma: float | None = None) -> tuple[str, str]:
     """The method ``solve(model, method="auto")`` uses on a post-decision MDP, and why."""
     g = _check_gamma(model, gamma)
+    first = _masked(model).argmax(axis=1).astype(np.int64)  # policy iteration's first policy
+    r0, y0 = _policy_parts(model, first)
+    found = _by_components(model, y0, r0, g)
+    if found is not None:
+        return "pi", (
+            f"post-decision model with one sparse kernel ({model.n_states:,} states) whose "
+            f"policies' graphs split into small strongly connected components (at most "
+            f"{found[1]:,} states for the first policy): each exact evaluation is a "
+            "back-substitution with small dense LUs, so policy iteration needs a handful "
+            "of cheap evaluations"
+        )
     return "mpi", (
         f"post-decision model ({model.n_states:,} states, {model.n_post:,} post-decision "
         f"states, gamma {g:g}): each backup is one product K v plus an (S, A) maximum, and "

@@ -181,10 +181,14 @@ PARALLEL_MIN_OUTCOMES = 2_000_000
 
 @njit(cache=True, nogil=True)
 def _row_dot(indptr: Any, nxt: Any, probs: Any, row: Any, v: Any) -> float:  # pragma: no cover
-    # sum_k probs[k] v[nxt[k]] over one row of the outcome table, in storage order.
+    # sum_k probs[k] v[nxt[k]] over one row of the outcome table, in storage order (a
+    # ``while`` over an unsigned index: a tighter loop than ``range`` over one).
     acc = 0.0
-    for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+    k = np.uint64(indptr[row])
+    end = np.uint64(indptr[row + 1])
+    while k < end:
         acc += probs[k] * v[np.uint64(nxt[k])]
+        k += np.uint64(1)
     return acc
 
 
@@ -292,7 +296,11 @@ def _policy_matvec_par(
 # T v without its argmax (value iteration's synchronous sweep): one pass over the rows,
 # the maximum taken as each row's sum is done (``max`` compiles to a branch-free
 # select, so successive rows' loads still overlap); ``Rm`` is the flat r(s, a) with
-# -inf on unavailable actions, so no mask is read either.
+# -inf on unavailable actions, so no mask is read either. Written out in the loop
+# (not through ``_row_dot``): each row's end is the next row's start, read once, and
+# a ``while`` over an unsigned index compiles to a tighter loop than ``range`` over
+# one; the sum is the same, term by term, so the values are identical bit for bit.
+# On the 200 x 200 grid this took the sweep from 1.6x to 1.2x a bare CSR product.
 
 
 @njit(cache=True, nogil=True)
@@ -303,9 +311,16 @@ def _optimality_values(
     A = Rm.shape[0] // S
     for s in range(S):
         best = -np.inf
+        hi = np.uint64(indptr[s * A])
         for a in range(A):
             row = s * A + a
-            best = max(best, Rm[row] + gamma * _row_dot(indptr, nxt, probs, row, v))
+            k = hi
+            hi = np.uint64(indptr[row + 1])
+            acc = 0.0
+            while k < hi:
+                acc += probs[k] * v[np.uint64(nxt[k])]
+                k += np.uint64(1)
+            best = max(best, Rm[row] + gamma * acc)
         out[s] = 0.0 if terminal[s] else best
 
 
@@ -317,9 +332,16 @@ def _optimality_values_par(
     A = Rm.shape[0] // S
     for s in prange(S):
         best = -np.inf
+        hi = np.uint64(indptr[s * A])
         for a in range(A):
             row = s * A + a
-            best = max(best, Rm[row] + gamma * _row_dot(indptr, nxt, probs, row, v))
+            k = hi
+            hi = np.uint64(indptr[row + 1])
+            acc = 0.0
+            while k < hi:
+                acc += probs[k] * v[np.uint64(nxt[k])]
+                k += np.uint64(1)
+            best = max(best, Rm[row] + gamma * acc)
         out[s] = 0.0 if terminal[s] else best
 
 

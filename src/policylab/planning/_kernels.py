@@ -760,14 +760,20 @@ def _component_solve(
     # solved successors moved to the right-hand side. Returns the largest component's
     # size, or -1 if a component is larger than ``max_block`` or a state only loops on
     # itself at gamma = 1 (x is then incomplete).
+    #
+    # index[s]: -1 before s is visited, its visit number while it is on the stack, and
+    # S (larger than any visit number) once its component is closed, so one load and
+    # one comparison per edge tell all three apart. Self-loops need no test (index[u]
+    # is never below low[u]); an entry of probability 0 is an edge like any other (a
+    # coarser split, as exact).
     S = row_of.shape[0]
+    done = S
     index = np.full(S, -1, dtype=np.int64)
     low = np.empty(S, dtype=np.int64)
-    local = np.full(S, -1, dtype=np.int64)
-    on_stack = np.zeros(S, dtype=np.bool_)
     stack = np.empty(S, dtype=np.int64)
     call = np.empty(S, dtype=np.int64)
     edge = np.empty(S, dtype=np.int64)
+    local = np.empty(0, dtype=np.int64)  # position in its component, for dense blocks
     top = 0
     counter = 0
     largest = 0
@@ -783,31 +789,31 @@ def _component_solve(
                 counter += 1
                 stack[top] = u
                 top += 1
-                on_stack[u] = True
                 call[depth] = u
                 edge[depth] = indptr[row_of[u]] if row_of[u] >= 0 else 0
                 depth += 1
             u = call[depth - 1]
             r = row_of[u]
-            end = indptr[r + 1] if r >= 0 else 0
-            k = edge[depth - 1]
-            descended = False
+            end = np.int64(indptr[r + 1]) if r >= 0 else 0
+            k = np.int64(edge[depth - 1])
+            low_u = low[u]
+            descend = np.int64(-1)
             while k < end:
                 w = np.int64(nxt[k])
                 k += 1
-                if w == u or probs[k - 1] == 0.0:
-                    continue
-                if index[w] < 0:
-                    edge[depth - 1] = k
-                    u = w
-                    descended = True
+                iw = index[w]
+                if iw < 0:
+                    descend = w
                     break
-                if on_stack[w] and index[w] < low[u]:
-                    low[u] = index[w]
-            if descended:
+                if iw < low_u:
+                    low_u = iw
+            low[u] = low_u
+            if descend >= 0:
+                edge[depth - 1] = k
+                u = descend
                 continue
             # u is finished: close its component if it is the component's root
-            if low[u] == index[u]:
+            if low_u == index[u]:
                 first = top - 1
                 while stack[first] != u:
                     first -= 1
@@ -825,6 +831,8 @@ def _component_solve(
                 else:
                     if n > max_block:
                         return -1
+                    if local.shape[0] == 0:
+                        local = np.full(S, -1, dtype=np.int64)
                     for i in range(n):
                         local[stack[first + i]] = i
                     M = np.zeros((n, n))
@@ -846,14 +854,14 @@ def _component_solve(
                         x[s] = sol[i]
                         local[s] = -1
                 for i in range(first, top):
-                    on_stack[stack[i]] = False
+                    index[stack[i]] = done
                 top = first
             depth -= 1
             if depth == 0:
                 break
             parent = call[depth - 1]
-            if low[u] < low[parent]:
-                low[parent] = low[u]
+            if low_u < low[parent]:
+                low[parent] = low_u
             u = parent
     return largest
 

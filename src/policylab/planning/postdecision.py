@@ -35,6 +35,8 @@ from policylab.exceptions import InvalidArgumentError, NotConvergedWarning
 from policylab.planning._checks import check_positive_int, check_tol, check_v
 from policylab.planning._kernels import (
     _parallel,
+    _row_dots,
+    _row_dots_par,
     component_solver_name,
     dense_block_max,
     solve_by_components,
@@ -109,6 +111,23 @@ def _masked(model: PostDecisionMDP) -> NDArray[np.float64]:
     return cached
 
 
+def _expect(model: PostDecisionMDP, v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """W = K v, (K v)(y) = sum_s' K(s' | y) v(s') (see :meth:`PostDecisionKernel.expect`).
+
+    A kernel that is one sparse matrix is multiplied by the compiled row sums of the
+    planning kernels (the same sums in the same order as SciPy's product, split over
+    numba's threads on large kernels); other kernels by their own ``expect``.
+    """
+    x = np.ascontiguousarray(v, dtype=np.float64)
+    k = model.kernel.factors[0]
+    if len(model.kernel.factors) != 1 or not sp.issparse(k):
+        return model.kernel.expect(x)
+    w = np.empty(k.shape[0])
+    dots = _row_dots_par if _parallel(k.nnz) else _row_dots
+    dots(k.indptr, k.indices, k.data, x, w)
+    return w
+
+
 def optimality_backup(
     model: PostDecisionMDP, gamma: float, v: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -117,7 +136,7 @@ def optimality_backup(
     One product W = K v, then one compiled pass over the (S, A) arrays (split over
     numba's threads on large models; each state's maximum is the same either way).
     """
-    w = model.kernel.expect(np.ascontiguousarray(v, dtype=np.float64))
+    w = _expect(model, v)
     out = np.empty(model.n_states)
     act = np.empty(model.n_states, dtype=np.int64)
     kernel = _backup_par if _parallel(model.post.size) else _backup
@@ -125,9 +144,18 @@ def optimality_backup(
     return out, act
 
 
-def q_values(model: PostDecisionMDP, v: NDArray[np.float64], gamma: float) -> NDArray[np.float64]:
-    """q(s, a) = r(s, a) + gamma (K v)(f(s, a)), -inf where a is not in A(s); (S, A)."""
-    w = model.kernel.expect(np.ascontiguousarray(v, dtype=np.float64))
+def q_values(
+    model: PostDecisionMDP,
+    v: NDArray[np.float64],
+    gamma: float,
+    *,
+    w: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64]:
+    """q(s, a) = r(s, a) + gamma (K v)(f(s, a)), -inf where a is not in A(s); (S, A).
+
+    ``w`` is the product K v when the caller has it already.
+    """
+    w = _expect(model, v) if w is None else w
     return _masked(model) + gamma * w[model.post]
 
 
@@ -180,6 +208,19 @@ def evaluate_actions(
     tol: float | None = None,
     x0: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], dict[str, Any]]:
+    """v_pi of a deterministic policy (:func:`_evaluate`, without the product K v_pi)."""
+    v, info, _ = _evaluate(model, actions, gamma, tol=tol, x0=x0)
+    return v, info
+
+
+def _evaluate(
+    model: PostDecisionMDP,
+    actions: NDArray[np.int64],
+    gamma: float,
+    *,
+    tol: float | None = None,
+    x0: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.float64], dict[str, Any], NDArray[np.float64]]:
     """v_pi of a deterministic policy: the solution of v = r_pi + gamma P_pi v, P_pi = K[f(., pi)].
 
     With a kernel that is one sparse matrix, one strongly connected component of the
@@ -191,8 +232,9 @@ def evaluate_actions(
     gamma) (default 1e-10 times the value scale max|r| / (1 - gamma)).
 
     Returns:
-        v and an info dict: ``solver``, ``residual`` (||r_pi + gamma P_pi v - v||_inf) and
-        ``error_bound`` = residual / (1 - gamma) >= max_s |v(s) - v_pi(s)|.
+        v, an info dict: ``solver``, ``residual`` (||r_pi + gamma P_pi v - v||_inf) and
+        ``error_bound`` = residual / (1 - gamma) >= max_s |v(s) - v_pi(s)|, and the
+        product K v that the residual took (policy iteration's improvement reuses it).
     """
     r_pi, y_pi = _policy_parts(model, actions)
     S = model.n_states
@@ -211,7 +253,7 @@ def evaluate_actions(
 
         def matvec(x: NDArray[np.float64]) -> NDArray[np.float64]:
             x = np.asarray(x, dtype=np.float64).reshape(-1)
-            return np.asarray(x - gamma * model.kernel.expect(x)[y_pi])
+            return np.asarray(x - gamma * _expect(model, x)[y_pi])
 
         op = spla.LinearOperator((S, S), matvec=matvec, dtype=np.float64)
         scale = max(1.0, float(np.abs(r_pi).max(initial=0.0))) / (1.0 - gamma)
@@ -219,10 +261,11 @@ def evaluate_actions(
         v, its, _ = _gmres_refined(op, r_pi, x0, target)
         info["solver"] = "GMRES"
         info["krylov_iterations"] = its
-    res = float(np.abs(r_pi + gamma * model.kernel.expect(v)[y_pi] - v).max(initial=0.0))
+    w = _expect(model, v)
+    res = float(np.abs(r_pi + gamma * w[y_pi] - v).max(initial=0.0))
     info["residual"] = res
     info["error_bound"] = res / (1.0 - gamma)
-    return v, info
+    return v, info, w
 
 
 def _result(
@@ -321,7 +364,7 @@ def modified_policy_iteration(
         act: NDArray[np.int64],
     ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
         r_pi, y_pi = _policy_parts(model, act)
-        return lambda x: r_pi + g * model.kernel.expect(x)[y_pi]
+        return lambda x: r_pi + g * _expect(model, x)[y_pi]
 
     v, history, sweeps, converged, bound, residual = mpi_iterations(
         lambda x: optimality_backup(model, g, x),
@@ -379,12 +422,13 @@ def policy_iteration(
     rows = np.arange(S)
     current = _masked(model).argmax(axis=1).astype(np.int64)
     v: NDArray[np.float64] | None = None
+    q: NDArray[np.float64] | None = None
     history: list[float] = []
     converged = False
     info: dict[str, Any] = {}
     for _ in range(max_iter):
-        v, info = evaluate_actions(model, current, g, tol=eval_tol, x0=v)
-        q = q_values(model, v, g)
+        v, info, w = _evaluate(model, current, g, tol=eval_tol, x0=v)
+        q = q_values(model, v, g, w=w)
         best_a = q.argmax(axis=1)
         best = q[rows, best_a]
         keep = q[rows, current] >= best - tie_tol * np.maximum(1.0, np.abs(best))
@@ -395,7 +439,7 @@ def policy_iteration(
         if changed == 0:
             converged = True
             break
-    assert v is not None
+    assert v is not None and q is not None
     if not converged:
         warnings.warn(
             f"policy iteration stopped after {len(history)} improvements (max_iter) with "
@@ -407,7 +451,7 @@ def policy_iteration(
 
     return PlanningResult(
         v=v,
-        q=q_values(model, v, g),
+        q=q,
         policy=Policy.from_actions(model, current),  # type: ignore[arg-type]
         iterations=len(history),
         converged=converged,

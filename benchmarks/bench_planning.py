@@ -829,11 +829,22 @@ NOTES = """Notes.
   up to 5 runs), best method chosen after the
   fact (among those whose policy is within 1e-6 of optimal); "auto" is policylab's
   own choice made before solving. Each library was asked for 1e-6 (policylab: tol on
-  v, with a proven bound where gamma < 1; quantecon and hiive: epsilon). "> 30 s
-  (stopped)" means the method hit the time limit. Every worker holds BLAS and OpenMP
-  to one thread; the "policylab" rows run numba on 1 thread, the "policylab, 2
-  threads" rows on 2 (threads are used by synchronous sweeps and policy evaluations
-  on models of 2,000,000 outcomes or more; Gauss-Seidel sweeps stay sequential).
+  v, with a proven bound where gamma < 1; quantecon and hiive: epsilon). "> N s
+  (stopped)" means the method hit the time limit (`--limit`). Every worker holds BLAS
+  and OpenMP to one thread; the "policylab" rows run numba on 1 thread, the
+  "policylab, 2 threads" rows on 2. Threads are used only by passes that read
+  2,000,000 outcomes (or kernel entries) or more: synchronous sweeps, policy
+  evaluation sweeps and the post-decision product K v of a sparse kernel; below that
+  size, and for Gauss-Seidel sweeps and the back-substitution by components, both
+  rows run the same sequential code (a threaded pass there costs more in start-up and
+  waiting than it saves), so auto on 2 threads differs from 1 thread only by noise.
+- "peak extra memory": the memory a solve adds above what the worker held before it
+  (the model, converted for the library), the larger of the peak of the arrays it
+  allocates from Python (tracemalloc, on one more untimed run of each solve of at
+  most 5 s) and its resident-memory samples (every 2 ms); in MiB and as a multiple of
+  the size of the model that the row's library was given (the outcome table, or the
+  post-decision model). Arrays allocated inside numba kernels are seen by the RSS
+  samples only.
 - Each policylab method finds the model's shared rows itself (the cache is cleared
   before each method), so its time includes that one pass over the outcome table.
 - "one sweep / floor": the fastest of 7 synchronous Bellman optimality sweeps over
@@ -863,7 +874,8 @@ NOTES = """Notes.
   depends on stock + order, Jack's cars on the counts after the move: 152 and 442
   distinct rows, one of them the empty row of unavailable actions, for the 22,801
   and 4,851 (state, action) slots), modified policy iteration with adaptive m on
-  the distinct rows; other continuing tasks, policy iteration up to 5,000 states
+  the distinct rows (on the post-decision model of an inventory, policy iteration:
+  see the post-decision notes); other continuing tasks, policy iteration up to 5,000 states
   (a dense LU where the dense matrix is no larger than the model) and
   MacQueen-bounded value iteration above.
 - Post-decision rows ("policylab post-decision"): the same MDP given to policylab as
@@ -872,7 +884,13 @@ NOTES = """Notes.
   surely to the stock after the order / the cars after the move, and a kernel that
   does not depend on the action (demand; rentals and returns, a Kronecker product of
   the two locations' kernels) moves it on. A backup is one product K v plus an
-  (S, A) maximum. Their "one sweep / floor" is the backup over the bare product K v
+  (S, A) maximum. auto: policy iteration when the kernel is one sparse matrix and
+  the first policy's graph splits into small strongly connected components (the
+  inventory: orders cycle only through low stock levels; 9 states at most here), as
+  each exact evaluation is then a back-substitution between the components and a
+  small dense LU for each; modified policy iteration with adaptive m otherwise
+  (Jack's car rental, whose Kronecker kernel mixes all states). Their "one sweep /
+  floor" is the backup over the bare product K v
   (BLAS matrix products for Jack's, a sparse product for the inventory); their
   2-thread rows run both numba and BLAS on 2 threads. Their model arrays are built
   in memory before timing, as the outcome tables are for the other libraries; the
@@ -884,7 +902,8 @@ NOTES = """Notes.
   1e-10 relative to the value scale).
 - The synchronous sweep of value iteration on the outcome table is one pass that
   takes each state's maximum as its rows are summed (-inf folded into r(s, a): no
-  mask read, no (S, A) temporary); the floor is scipy's CSR product with int32 row
+  mask read, no (S, A) temporary; each row's end read once, as the next row's
+  start); the floor is scipy's CSR product with int32 row
   offsets, where the outcome table keeps int64 ones (any size of table).
 - Families `inventory-1000` and `jacks-30` are the largest sizes whose outcome table
   is built here for the anchors (about 10^7 outcomes); `inventory-1000`'s table is

@@ -98,3 +98,26 @@ def test_dense_block_max_keeps_the_block_no_larger_than_the_model() -> None:
     assert dense_block_max(8 * 100**2 - 1) == 99
     assert dense_block_max(10**12) == 3000
     assert dense_block_max(0) == 0
+
+
+def test_small_components_accepts_cheap_splits_only() -> None:
+    from policylab.planning._kernels import small_components
+    from policylab.problems import jacks_car_rental
+
+    # 12 single states, or cycles of up to 5 states among 30 single ones: the largest
+    # LU (5^3 / 3 multiply-adds) costs less than a pass over the 90-odd entries
+    for sizes, want in (([1] * 12, 1), ([3, 1, 4, 1, 5] + [1] * 30, 5)):
+        P, _ = planted_components(0, sizes)
+        n = P.shape[0]
+        got = small_components(P.indptr, P.indices, P.data, np.arange(n), 10**9)
+        assert got == want
+    # one cycle of 30: 30^3 / 3 = 9,000 multiply-adds against 60 entries
+    P, _ = planted_components(0, [30])
+    assert small_components(P.indptr, P.indices, P.data, np.arange(30), 10**9) is None
+    # a component over the dense-block limit (the model's size) is not small either
+    P, _ = planted_components(0, [3, 5])
+    assert small_components(P.indptr, P.indices, P.data, np.arange(8), 8 * 4**2) is None
+    # Jack's car rental: every state in one component (rental and returns mix them)
+    mdp = jacks_car_rental(max_cars=6, max_move=2)
+    rows = np.arange(mdp.n_states) * mdp.n_actions + mdp.n_actions // 2  # move no car
+    assert small_components(mdp.indptr, mdp.next_states, mdp.probs, rows, mdp.nbytes) is None

@@ -31,6 +31,7 @@ __all__ = [
     "progressing_actions",
     "q_values",
     "shared_rows",
+    "small_components",
     "solve_by_components",
     "termination_distances",
 ]
@@ -912,6 +913,28 @@ def solve_by_components(
         int(max_block),
     )
     return None if largest < 0 else (x, int(largest))
+
+
+def small_components(
+    indptr: np.ndarray, nxt: np.ndarray, probs: np.ndarray, row_of: np.ndarray, n_bytes: int
+) -> int | None:
+    """The largest strongly connected component of a policy's graph, if all are small.
+
+    Small: each fits :func:`dense_block_max` (``n_bytes``, the model's size) and the
+    largest one's dense LU, n^3 / 3 multiply-adds, costs no more than one pass over the
+    policy's rows, so that exact evaluation by components (:func:`solve_by_components`)
+    costs about two passes over the rows. None otherwise. The graph is that of
+    ``row_of`` as in :func:`solve_by_components` (found by solving with b = 0).
+    """
+    rows = np.asarray(row_of, dtype=np.int64)
+    live = rows[rows >= 0]
+    entries = int((indptr[live + 1] - indptr[live]).sum())
+    found = solve_by_components(
+        indptr, nxt, probs, rows, np.zeros(rows.shape[0]), 0.5, dense_block_max(n_bytes)
+    )
+    if found is None or found[1] ** 3 > 3 * entries:
+        return None
+    return found[1]
 
 
 def component_solver_name(largest: int, n_states: int) -> str:

@@ -39,6 +39,7 @@ from policylab.planning._kernels import (
     _row_dots_par,
     component_solver_name,
     dense_block_max,
+    small_components,
     solve_by_components,
 )
 from policylab.planning._sweeps import run_sweeps
@@ -468,17 +469,23 @@ def policy_iteration(
 def choose_method(model: PostDecisionMDP, gamma: float | None = None) -> tuple[str, str]:
     """The method ``solve(model, method="auto")`` uses on a post-decision MDP, and why."""
     g = _check_gamma(model, gamma)
-    first = _masked(model).argmax(axis=1).astype(np.int64)  # policy iteration's first policy
-    r0, y0 = _policy_parts(model, first)
-    found = _by_components(model, y0, r0, g)
-    if found is not None:
-        return "pi", (
-            f"post-decision model with one sparse kernel ({model.n_states:,} states) whose "
-            f"policies' graphs split into small strongly connected components (at most "
-            f"{found[1]:,} states for the first policy): each exact evaluation is a "
-            "back-substitution with small dense LUs, so policy iteration needs a handful "
-            "of cheap evaluations"
+    kernel = model.kernel.factors[0]
+    if len(model.kernel.factors) == 1 and sp.issparse(kernel):
+        first = _masked(model).argmax(axis=1).astype(np.int64)  # policy iteration's start
+        largest = small_components(
+            kernel.indptr,
+            kernel.indices,
+            kernel.data,
+            _policy_parts(model, first)[1],
+            model.nbytes,
         )
+        if largest is not None:
+            return "pi", (
+                f"post-decision model with one sparse kernel ({model.n_states:,} states) "
+                "whose first policy's graph splits into small strongly connected components "
+                f"(at most {largest:,} states): each exact evaluation is a back-substitution "
+                "with small dense LUs, so policy iteration needs a handful of cheap evaluations"
+            )
     return "mpi", (
         f"post-decision model ({model.n_states:,} states, {model.n_post:,} post-decision "
         f"states, gamma {g:g}): each backup is one product K v plus an (S, A) maximum, and "

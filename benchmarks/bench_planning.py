@@ -20,8 +20,10 @@ over the (S * A, S) matrix (scipy CSR) is timed in the same process: the floor o
 sweep (on the post-decision rows, the bare kernel product K v instead). The parent
 evaluates every returned policy exactly and reports its error against v_* (policy
 iteration with exact evaluation, cross-checked by ordered Gauss-Seidel sweeps at
-1e-9; on families without an outcome table, modified policy iteration on the
-post-decision model to a proven 1e-10, cross-checked by value iteration at 1e-9).
+1e-9; on families without an outcome table, the post-decision model solved by
+policylab's auto to 1e-10 (policy iteration, exact, where policies split into small
+strongly connected components; modified policy iteration to a proven 1e-10 otherwise),
+cross-checked by value iteration at 1e-9).
 """
 
 from __future__ import annotations
@@ -630,7 +632,7 @@ def reference(fam: str, table: Any, pd_model: Any) -> np.ndarray:
         ref = solve(table, "pi")
         check = pl.value_iteration(table, tol=1e-9, gauss_seidel=True)
     else:
-        ref = solve(pd_model, "mpi", tol=1e-10)
+        ref = solve(pd_model, "auto", tol=1e-10)
         check = solve(pd_model, "vi", tol=1e-9)
     scale = max(1.0, float(np.abs(ref.v).max()))
     assert np.max(np.abs(check.v - ref.v)) <= 1e-7 * scale, fam
@@ -896,10 +898,12 @@ NOTES = """Notes.
   in memory before timing, as the outcome tables are for the other libraries; the
   families without a table (`jacks-1e5`, and the `--large` `inventory-1e5` and
   `jacks-1e6`) have no anchor that can hold them: the table is given in the family's
-  heading. Their reference v_* is modified policy iteration on the post-decision
-  model to a proven 1e-10, cross-checked by value iteration at 1e-9, and each
-  returned policy is evaluated by GMRES on the post-decision model (residual bound
-  1e-10 relative to the value scale).
+  heading. Their reference v_* is policylab's auto on the post-decision model to
+  1e-10 (exact policy iteration by components on the inventories, modified policy
+  iteration to a proven 1e-10 on Jack's), cross-checked by value iteration at 1e-9,
+  and each returned policy is evaluated exactly on the post-decision model (by
+  components where its graph splits into small ones, else by GMRES to a residual
+  bound of 1e-10 relative to the value scale).
 - The synchronous sweep of value iteration on the outcome table is one pass that
   takes each state's maximum as its rows are summed (-inf folded into r(s, a): no
   mask read, no (S, A) temporary; each row's end read once, as the next row's

@@ -157,7 +157,10 @@ def q_values(
     ``w`` is the product K v when the caller has it already.
     """
     w = _expect(model, v) if w is None else w
-    return _masked(model) + gamma * w[model.post]
+    q = w[model.post]  # one (S, A) array, updated in place
+    q *= gamma
+    q += _masked(model)
+    return q
 
 
 def _policy_parts(

@@ -929,12 +929,19 @@ def small_components(
     rows = np.asarray(row_of, dtype=np.int64)
     live = rows[rows >= 0]
     entries = int((indptr[live + 1] - indptr[live]).sum())
+    cheap = 1  # the largest n with n^3 <= 3 * entries (the search stops past it)
+    while (cheap + 1) ** 3 <= 3 * entries:
+        cheap += 1
     found = solve_by_components(
-        indptr, nxt, probs, rows, np.zeros(rows.shape[0]), 0.5, dense_block_max(n_bytes)
+        indptr,
+        nxt,
+        probs,
+        rows,
+        np.zeros(rows.shape[0]),
+        0.5,
+        min(dense_block_max(n_bytes), cheap),
     )
-    if found is None or found[1] ** 3 > 3 * entries:
-        return None
-    return found[1]
+    return None if found is None else found[1]
 
 
 def component_solver_name(largest: int, n_states: int) -> str:

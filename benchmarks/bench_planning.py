@@ -723,6 +723,7 @@ def main() -> int:
         + ([f"--families {args.families}"] if args.families else [])
         + ([f"--threads {args.threads}"] if args.threads != "1,2" else [])
         + ([f"--libs {args.libs}"] if args.libs else [])
+        + ([f"--limit {args.limit:g}"] if args.limit != 30 else [])
     )
     if not args.no_write:
         write_section("Exact planning", cmd, body)

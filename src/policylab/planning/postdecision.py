@@ -212,7 +212,20 @@ def evaluate_actions(
     tol: float | None = None,
     x0: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], dict[str, Any]]:
-    """v_pi of a deterministic policy (:func:`_evaluate`, without the product K v_pi)."""
+    """v_pi of a deterministic policy: the solution of v = r_pi + gamma P_pi v, P_pi = K[f(., pi)].
+
+    With a kernel that is one sparse matrix, one strongly connected component of the
+    policy's graph at a time when each is small (back-substitution, and a dense LU per
+    component whose matrix is no larger than the model:
+    :func:`~policylab.planning._kernels.solve_by_components`); otherwise a dense LU up
+    to :data:`DENSE_EVAL_MAX_STATES` states (the rows K(. | f(s, pi(s))) formed), GMRES
+    on the operator v -> v - gamma (K v)(f(., pi)) above, to a residual of ``tol`` (1 -
+    gamma) (default 1e-10 times the value scale max|r| / (1 - gamma)).
+
+    Returns:
+        v and an info dict: ``solver``, ``residual`` (||r_pi + gamma P_pi v - v||_inf) and
+        ``error_bound`` = residual / (1 - gamma) >= max_s |v(s) - v_pi(s)|.
+    """
     v, info, _ = _evaluate(model, actions, gamma, tol=tol, x0=x0)
     return v, info
 
@@ -225,20 +238,9 @@ def _evaluate(
     tol: float | None = None,
     x0: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], dict[str, Any], NDArray[np.float64]]:
-    """v_pi of a deterministic policy: the solution of v = r_pi + gamma P_pi v, P_pi = K[f(., pi)].
+    """:func:`evaluate_actions`, and the product K v_pi that its residual took.
 
-    With a kernel that is one sparse matrix, one strongly connected component of the
-    policy's graph at a time when each is small (back-substitution, and a dense LU per
-    component whose matrix is no larger than the model:
-    :func:`~policylab.planning._kernels.solve_by_components`); otherwise a dense LU up
-    to :data:`DENSE_EVAL_MAX_STATES` states (the rows K(. | f(s, pi(s))) formed), GMRES
-    on the operator v -> v - gamma (K v)(f(., pi)) above, to a residual of ``tol`` (1 -
-    gamma) (default 1e-10 times the value scale max|r| / (1 - gamma)).
-
-    Returns:
-        v, an info dict: ``solver``, ``residual`` (||r_pi + gamma P_pi v - v||_inf) and
-        ``error_bound`` = residual / (1 - gamma) >= max_s |v(s) - v_pi(s)|, and the
-        product K v that the residual took (policy iteration's improvement reuses it).
+    Policy iteration's improvement reuses that product.
     """
     r_pi, y_pi = _policy_parts(model, actions)
     S = model.n_states

@@ -28,6 +28,7 @@ FAMILIES = {
     "chain-0.999": lambda: long_chain(150, 0.8, gamma=0.999),
     "chain-shortest-path": lambda: long_chain(150, 0.8, gamma=1.0),
     "inventory": lambda: inventory_management(capacity=15),
+    "inventory-max-order": lambda: inventory_management(capacity=40, max_order=8),
     "jacks-car-rental": lambda: jacks_car_rental(max_cars=6, max_move=2),
 }
 
@@ -82,10 +83,13 @@ def test_auto_rules() -> None:
     assert choose_method(random_mdp(100))[0] == "pi"
     assert choose_method(random_mdp(6000, 2, 2))[0] == "vi"
     assert choose_method(random_mdp(6000, 2, 2, gamma=0.999))[0] == "mpi"
-    # rows that repeat (the next stock depends on s + a only; Jack's cars after the move)
-    for mdp in (inventory_management(capacity=15), jacks_car_rental(max_cars=6, max_move=2)):
-        method, reason = choose_method(mdp)
-        assert method == "mpi" and "distinct" in reason
+    # rows that repeat (the next stock depends on s + a only; Jack's cars after the move):
+    # the inventory's first policy cycles only through low stock levels (small strongly
+    # connected components, cheap exact evaluation); Jack's mixes every state
+    method, reason = choose_method(inventory_management(capacity=15))
+    assert method == "pi" and "components" in reason
+    method, reason = choose_method(jacks_car_rental(max_cars=6, max_move=2))
+    assert method == "mpi" and "distinct" in reason
     # gamma given to solve overrides the MDP's
     assert choose_method(slip_gridworld(5, gamma=0.99), 1.0)[0] == "pi"
     with pytest.raises(InvalidArgumentError, match="method must be one of"):
@@ -122,3 +126,56 @@ def test_family_builders_check_their_arguments() -> None:
         long_chain(0)
     assert pl.problems.get_problem("slip-gridworld", size=3).n_states == 9
     assert pl.problems.get_problem("long-chain", n_states=3).n_states == 4
+
+
+#: The families that the benchmark also solves as post-decision models (small sizes).
+POST_DECISION = {
+    "inventory": {"capacity": 15},
+    "inventory-max-order": {"capacity": 40, "max_order": 8},
+    "jacks-car-rental": {"max_cars": 6, "max_move": 2},
+    "jacks-car-rental-8": {"max_cars": 8, "max_move": 3},
+}
+
+
+@pytest.mark.parametrize("family", sorted(POST_DECISION))
+def test_every_post_decision_method_reaches_the_optimum(family: str) -> None:
+    kw = POST_DECISION[family]
+    build = jacks_car_rental if family.startswith("jacks") else inventory_management
+    model, table = build(**kw, post_decision=True), build(**kw)
+    ref = pl.policy_iteration(table, solver="direct")
+    scale = max(1.0, float(np.abs(ref.v).max()))
+    for method in ("auto", "vi", "pi", "mpi"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            res = solve(model, method, tol=TOL)
+        assert res.converged, (family, method)
+        err = float(np.max(np.abs(res.v - ref.v)))
+        assert res.error_bound is not None
+        assert err <= res.error_bound + 1e-9 * scale, (family, method, err, res.error_bound)
+        assert err <= TOL + 1e-9 * scale, (family, method, err)
+        v_pi = pl.evaluate_policy(table, pl.Policy.from_actions(table, res.policy.action_indices()))
+        assert np.max(ref.v - v_pi) <= 1e-6 * scale, (family, method)
+    # the inventory's policies split into small components: auto is policy iteration
+    # with evaluation by components; Jack's Kronecker kernel goes to adaptive MPI
+    chosen, reason = choose_method(model)
+    assert chosen == ("mpi" if family.startswith("jacks") else "pi"), reason
+    if chosen == "pi":
+        assert solve(model).info["solver"].startswith("direct (components")
+
+
+def test_auto_on_a_post_decision_model_with_one_large_component_is_mpi() -> None:
+    import scipy.sparse as sp
+
+    from policylab.mdp import PostDecisionMDP
+
+    rng = np.random.default_rng(0)
+    S, A = 400, 2
+    K = sp.random_array((S, S), density=0.02, random_state=rng, format="csr")
+    K = sp.csr_array(K + sp.eye_array(S, k=1, format="csr") + sp.eye_array(S, k=1 - S))
+    K = sp.csr_array(K.multiply(1.0 / K.sum(axis=1)[:, None]))  # a cycle through all
+    model = PostDecisionMDP(rng.integers(0, S, (S, A)), rng.normal(size=(S, A)), K, 0.9)
+    chosen, reason = choose_method(model)
+    assert chosen == "mpi", reason
+    ref = solve(model, "pi", tol=1e-10)
+    res = solve(model, tol=1e-8)
+    assert np.max(np.abs(res.v - ref.v)) <= res.error_bound + 1e-9

@@ -45,7 +45,9 @@ def test_same_optimum_policy_and_bound_as_the_table(name: str, method: str, pair
     np.testing.assert_array_equal(res.policy.action_indices(), ref.policy.action_indices())
     np.testing.assert_allclose(res.q, ref.q, rtol=1e-9, atol=1e-6)
     if method == "auto":
-        assert res.info["auto"]["method"] == "mpi"
+        # the inventory's policies cycle only through low stock levels (small strongly
+        # connected components: exact evaluation is cheap); Jack's kernel is a product
+        assert res.info["auto"]["method"] == {"jacks": "mpi", "inventory": "pi"}[name]
 
 
 @pytest.mark.parametrize("name", ["jacks", "inventory"])

@@ -291,6 +291,6 @@ def _validated(mdp: FiniteMDP, probs: NDArray[np.float64]) -> NDArray[np.float64
             f"pi(. | {mdp.states[s]!r}) sums to {fmt_number(sums[s], near=1.0)}; each "
             "non-terminal row must sum to 1"
         )
-    p[live] /= sums[live, None]
+    np.divide(p, sums[:, None], out=p, where=live[:, None])  # in place: no (S, A) copy
     p.flags.writeable = False
     return p

@@ -8,6 +8,7 @@ read as unsigned integers so that no negative-index wraparound check is compiled
 
 from __future__ import annotations
 
+import math
 import weakref
 from typing import Any, NamedTuple
 
@@ -18,6 +19,9 @@ from numba import njit, prange
 __all__ = [
     "PARALLEL_MIN_OUTCOMES",
     "SharedRows",
+    "component_policy_solve",
+    "component_solver_name",
+    "dense_block_max",
     "dense_policy_system",
     "gauss_seidel_expectation_sweep",
     "gauss_seidel_optimality_sweep",
@@ -27,8 +31,9 @@ __all__ = [
     "progressing_actions",
     "q_values",
     "shared_rows",
+    "small_components",
+    "solve_by_components",
     "termination_distances",
-    "triangular_policy_solve",
 ]
 
 
@@ -177,10 +182,14 @@ PARALLEL_MIN_OUTCOMES = 2_000_000
 
 @njit(cache=True, nogil=True)
 def _row_dot(indptr: Any, nxt: Any, probs: Any, row: Any, v: Any) -> float:  # pragma: no cover
-    # sum_k probs[k] v[nxt[k]] over one row of the outcome table, in storage order.
+    # sum_k probs[k] v[nxt[k]] over one row of the outcome table, in storage order (a
+    # ``while`` over an unsigned index: a tighter loop than ``range`` over one).
     acc = 0.0
-    for k in range(np.uint64(indptr[row]), np.uint64(indptr[row + 1])):
+    k = np.uint64(indptr[row])
+    end = np.uint64(indptr[row + 1])
+    while k < end:
         acc += probs[k] * v[np.uint64(nxt[k])]
+        k += np.uint64(1)
     return acc
 
 
@@ -288,7 +297,11 @@ def _policy_matvec_par(
 # T v without its argmax (value iteration's synchronous sweep): one pass over the rows,
 # the maximum taken as each row's sum is done (``max`` compiles to a branch-free
 # select, so successive rows' loads still overlap); ``Rm`` is the flat r(s, a) with
-# -inf on unavailable actions, so no mask is read either.
+# -inf on unavailable actions, so no mask is read either. Written out in the loop
+# (not through ``_row_dot``): each row's end is the next row's start, read once, and
+# a ``while`` over an unsigned index compiles to a tighter loop than ``range`` over
+# one; the sum is the same, term by term, so the values are identical bit for bit.
+# On the 200 x 200 grid this took the sweep from 1.6x to 1.2x a bare CSR product.
 
 
 @njit(cache=True, nogil=True)
@@ -299,9 +312,16 @@ def _optimality_values(
     A = Rm.shape[0] // S
     for s in range(S):
         best = -np.inf
+        hi = np.uint64(indptr[s * A])
         for a in range(A):
             row = s * A + a
-            best = max(best, Rm[row] + gamma * _row_dot(indptr, nxt, probs, row, v))
+            k = hi
+            hi = np.uint64(indptr[row + 1])
+            acc = 0.0
+            while k < hi:
+                acc += probs[k] * v[np.uint64(nxt[k])]
+                k += np.uint64(1)
+            best = max(best, Rm[row] + gamma * acc)
         out[s] = 0.0 if terminal[s] else best
 
 
@@ -313,9 +333,16 @@ def _optimality_values_par(
     A = Rm.shape[0] // S
     for s in prange(S):
         best = -np.inf
+        hi = np.uint64(indptr[s * A])
         for a in range(A):
             row = s * A + a
-            best = max(best, Rm[row] + gamma * _row_dot(indptr, nxt, probs, row, v))
+            k = hi
+            hi = np.uint64(indptr[row + 1])
+            acc = 0.0
+            while k < hi:
+                acc += probs[k] * v[np.uint64(nxt[k])]
+                k += np.uint64(1)
+            best = max(best, Rm[row] + gamma * acc)
         out[s] = 0.0 if terminal[s] else best
 
 
@@ -715,68 +742,231 @@ def dense_policy_system(mdp: Any, actions: np.ndarray, gamma: float) -> np.ndarr
 
 
 @njit(cache=True, nogil=True)
-def _triangular_policy_solve(
-    indptr: Any, nxt: Any, probs: Any, rows: Any, terminal: Any, gamma: float, b: Any, x: Any
-) -> Any:  # pragma: no cover - compiled
-    # Back-substitution of (I - gamma P_pi) x = b when the policy's graph, self-loops
-    # aside, has no cycle: a state is solved once all its successors are (Kahn's
-    # algorithm on the reversed graph), its self-loop exactly. ``rows`` is the flat
-    # (S * A,) mask of the policy's rows; x starts at 0. False on a cycle, or on a live
-    # state that only loops on itself at gamma = 1.
-    S = terminal.shape[0]
-    A = rows.shape[0] // S
-    start, src, pending = _reversed_graph(indptr, nxt, probs, rows, S, False)
-    queue = np.empty(S, dtype=np.int64)
-    tail = 0
-    for s in range(S):
-        if pending[s] == 0:
-            queue[tail] = s
-            tail += 1
-    head = 0
-    while head < tail:
-        u = queue[head]
-        head += 1
-        if not terminal[u]:
-            for a in range(A):
-                if rows[u * A + a]:
-                    acc, stay = _split_row(indptr, nxt, probs, u * A + a, u, x)
-                    den = 1.0 - gamma * stay
-                    if not den > 1e-12:
-                        return False
-                    x[u] = (b[u] + gamma * acc) / den
-        for e in range(start[u], start[u + 1]):
-            w = src[e]
-            pending[w] -= 1
-            if pending[w] == 0:
-                queue[tail] = w
-                tail += 1
-    return tail == S
+def _component_solve(
+    indptr: Any,
+    nxt: Any,
+    probs: Any,
+    row_of: Any,
+    gamma: float,
+    b: Any,
+    x: Any,
+    max_block: int,
+) -> int:  # pragma: no cover - compiled
+    # Solve x = b + gamma P x, where state s's row of P is row ``row_of[s]`` of the CSR
+    # arrays (-1: no row, x(s) = 0), one strongly connected component of P's graph at a
+    # time. Tarjan's algorithm (iterative) closes each component after every component
+    # it can reach, so its successors outside it are solved already: a single state
+    # with its self-loop solved exactly, x(s) = (b(s) + gamma sum_{s' != s} p x(s')) /
+    # (1 - gamma p(s|s)); a larger component by a dense LU of I - gamma P_CC with the
+    # solved successors moved to the right-hand side. Returns the largest component's
+    # size, or -1 if a component is larger than ``max_block`` or a state only loops on
+    # itself at gamma = 1 (x is then incomplete).
+    #
+    # index[s]: -1 before s is visited, its visit number while it is on the stack, and
+    # S (larger than any visit number) once its component is closed, so one load and
+    # one comparison per edge tell all three apart. Self-loops need no test (index[u]
+    # is never below low[u]); an entry of probability 0 is an edge like any other (a
+    # coarser split, as exact).
+    S = row_of.shape[0]
+    done = S
+    index = np.full(S, -1, dtype=np.int64)
+    low = np.empty(S, dtype=np.int64)
+    stack = np.empty(S, dtype=np.int64)
+    call = np.empty(S, dtype=np.int64)
+    edge = np.empty(S, dtype=np.int64)
+    local = np.empty(0, dtype=np.int64)  # position in its component, for dense blocks
+    top = 0
+    counter = 0
+    largest = 0
+    for root in range(S):
+        if index[root] >= 0:
+            continue
+        depth = 0
+        u = np.int64(root)
+        while True:
+            if index[u] < 0:  # enter u
+                index[u] = counter
+                low[u] = counter
+                counter += 1
+                stack[top] = u
+                top += 1
+                call[depth] = u
+                edge[depth] = indptr[row_of[u]] if row_of[u] >= 0 else 0
+                depth += 1
+            u = call[depth - 1]
+            r = row_of[u]
+            end = np.int64(indptr[r + 1]) if r >= 0 else 0
+            k = np.int64(edge[depth - 1])
+            low_u = low[u]
+            descend = np.int64(-1)
+            while k < end:
+                w = np.int64(nxt[k])
+                k += 1
+                iw = index[w]
+                if iw < 0:
+                    descend = w
+                    break
+                if iw < low_u:
+                    low_u = iw
+            low[u] = low_u
+            if descend >= 0:
+                edge[depth - 1] = k
+                u = descend
+                continue
+            # u is finished: close its component if it is the component's root
+            if low_u == index[u]:
+                first = top - 1
+                while stack[first] != u:
+                    first -= 1
+                n = top - first
+                largest = max(largest, n)
+                if n == 1:
+                    if r >= 0:
+                        acc, stay = _split_row(indptr, nxt, probs, r, u, x)
+                        den = 1.0 - gamma * stay
+                        if not den > 1e-12:
+                            return -1
+                        x[u] = (b[u] + gamma * acc) / den
+                    else:
+                        x[u] = 0.0
+                else:
+                    if n > max_block:
+                        return -1
+                    if local.shape[0] == 0:
+                        local = np.full(S, -1, dtype=np.int64)
+                    for i in range(n):
+                        local[stack[first + i]] = i
+                    M = np.zeros((n, n))
+                    rhs = np.empty(n)
+                    for i in range(n):
+                        s = stack[first + i]
+                        M[i, i] += 1.0
+                        rhs[i] = b[s]
+                        rs = row_of[s]
+                        for kk in range(np.int64(indptr[rs]), np.int64(indptr[rs + 1])):
+                            j = np.int64(nxt[kk])
+                            if local[j] >= 0:
+                                M[i, local[j]] -= gamma * probs[kk]
+                            else:
+                                rhs[i] += gamma * probs[kk] * x[j]
+                    sol = np.linalg.solve(M, rhs)
+                    for i in range(n):
+                        s = stack[first + i]
+                        x[s] = sol[i]
+                        local[s] = -1
+                for i in range(first, top):
+                    index[stack[i]] = done
+                top = first
+            depth -= 1
+            if depth == 0:
+                break
+            parent = call[depth - 1]
+            if low_u < low[parent]:
+                low[parent] = low_u
+            u = parent
+    return largest
 
 
-def triangular_policy_solve(
-    mdp: Any, actions: np.ndarray, b: np.ndarray, gamma: float
-) -> np.ndarray | None:
-    """Solve v = b + gamma P_pi v by back-substitution when the policy graph is acyclic.
+def dense_block_max(n_bytes: int) -> int:
+    """The largest component :func:`solve_by_components` may solve by a dense LU.
 
-    For a deterministic policy whose transitions, self-loops aside, form no cycle (a
-    proper policy on a grid or a chain that always moves toward the goal), the states
-    can be ordered so that each depends only on states solved before it: the system is
-    triangular, and v(s) = [b(s) + gamma sum_{s' != s} p(s'|s) v(s')] / (1 - gamma
-    p(s|s)) solves it exactly in one pass, with no matrix built and no fill-in.
-    Returns None when the graph has a cycle (or a state that only loops on itself).
+    Its n x n matrix is no larger than the model (``n_bytes``), and n is at most 3,000.
     """
-    x = np.zeros(mdp.n_states)
-    live = np.flatnonzero(~mdp.terminal)
-    rows = np.zeros(mdp.n_states * mdp.n_actions, dtype=np.bool_)
-    rows[live * mdp.n_actions + np.asarray(actions, dtype=np.int64)[live]] = True
-    ok = _triangular_policy_solve(
-        mdp.indptr,
-        mdp.next_states,
-        mdp.probs,
-        rows,
-        mdp.terminal,
+    return int(min(3000, math.isqrt(max(int(n_bytes), 0) // 8)))
+
+
+def solve_by_components(
+    indptr: np.ndarray,
+    nxt: np.ndarray,
+    probs: np.ndarray,
+    row_of: np.ndarray,
+    b: np.ndarray,
+    gamma: float,
+    max_block: int,
+) -> tuple[np.ndarray, int] | None:
+    """Solve x = b + gamma P x one strongly connected component of P's graph at a time.
+
+    State s's row of P is row ``row_of[s]`` of the CSR arrays (``indptr``, ``nxt``,
+    ``probs``); ``row_of[s] = -1`` marks a state without a row (x(s) = 0). Ordering the
+    components so that each comes after every component it can reach makes I - gamma P
+    block triangular: a component of one state is solved exactly with its self-loop,
+    x(s) = [b(s) + gamma sum_{s' != s} p(s'|s) x(s')] / (1 - gamma p(s|s)), a larger one
+    C by a dense LU of I - gamma P_CC with its solved successors on the right-hand side.
+    An acyclic graph (a proper policy that heads for the goal) is one back-substitution
+    pass; an inventory policy, whose orders only cycle through the low stock levels, a
+    small dense block and a back-substitution. The components come from Tarjan's
+    algorithm in one pass over the rows.
+
+    Returns:
+        x and the largest component's size, or None if a component has more than
+        ``max_block`` states or a state only loops on itself at gamma = 1.
+    """
+    x = np.zeros(row_of.shape[0])
+    largest = _component_solve(
+        indptr,
+        nxt,
+        probs,
+        np.ascontiguousarray(row_of, dtype=np.int64),
         gamma,
         np.ascontiguousarray(b, dtype=np.float64),
         x,
+        int(max_block),
     )
-    return x if ok else None
+    return None if largest < 0 else (x, int(largest))
+
+
+def small_components(
+    indptr: np.ndarray, nxt: np.ndarray, probs: np.ndarray, row_of: np.ndarray, n_bytes: int
+) -> int | None:
+    """The largest strongly connected component of a policy's graph, if all are small.
+
+    Small: each fits :func:`dense_block_max` (``n_bytes``, the model's size) and the
+    largest one's dense LU, n^3 / 3 multiply-adds, costs no more than one pass over the
+    policy's rows, so that exact evaluation by components (:func:`solve_by_components`)
+    costs about two passes over the rows. None otherwise. The graph is that of
+    ``row_of`` as in :func:`solve_by_components` (found by solving with b = 0).
+    """
+    rows = np.asarray(row_of, dtype=np.int64)
+    live = rows[rows >= 0]
+    entries = int((indptr[live + 1] - indptr[live]).sum())
+    cheap = 1  # the largest n with n^3 <= 3 * entries (the search stops past it)
+    while (cheap + 1) ** 3 <= 3 * entries:
+        cheap += 1
+    found = solve_by_components(
+        indptr,
+        nxt,
+        probs,
+        rows,
+        np.zeros(rows.shape[0]),
+        0.5,
+        min(dense_block_max(n_bytes), cheap),
+    )
+    return None if found is None else found[1]
+
+
+def component_solver_name(largest: int, n_states: int) -> str:
+    """The ``solver`` reported for a solve by strongly connected components.
+
+    One component of every state is a dense LU of the whole system; components of one
+    state each, a back-substitution.
+    """
+    if largest <= 1:
+        return "direct (back-substitution)"
+    if largest == n_states:
+        return "direct (dense LU)"
+    return f"direct (components: back-substitution, dense LU up to {largest} states)"
+
+
+def component_policy_solve(
+    mdp: Any, actions: np.ndarray, b: np.ndarray, gamma: float, max_block: int
+) -> tuple[np.ndarray, int] | None:
+    """:func:`solve_by_components` for a deterministic policy on the outcome table.
+
+    Solves v = b + gamma P_pi v with v = 0 on terminal states; the rows of P_pi are the
+    outcome table's rows (s, pi(s)).
+    """
+    row_of = np.arange(mdp.n_states, dtype=np.int64) * mdp.n_actions + np.asarray(
+        actions, dtype=np.int64
+    )
+    row_of[mdp.terminal] = -1
+    return solve_by_components(mdp.indptr, mdp.next_states, mdp.probs, row_of, b, gamma, max_block)

@@ -16,9 +16,14 @@ measured on families of MDPs, from the problem's size, gamma and structure:
 3. Continuing, whose distributions p(. | s, a) repeat across many (s, a) (the
    distinct rows hold at most half the outcomes, as in inventories and Jack's car
    rental, whose next state depends on the stock after the order or the move):
-   modified policy iteration with adaptive m. A Bellman optimality sweep then costs
-   about what one policy-evaluation sweep does (each distinct row is summed once), so
-   cheap sweeps beat the linear solves of policy iteration.
+   policy iteration if the first policy's graph (greedy in r(s, a)) splits into small
+   strongly connected components (an inventory reorders only at low stock, and above
+   that the stock only falls), whose exact evaluation is then a back-substitution
+   between the components with a small dense LU for each ("small": the largest
+   component's dense LU costs no more than one pass over the policy's rows).
+   Otherwise modified policy iteration with adaptive m: a Bellman optimality sweep
+   then costs about what one policy-evaluation sweep does (each distinct row is summed
+   once), so cheap sweeps beat the linear solves of policy iteration.
 4. Continuing and small otherwise (at most ``DIRECT_MAX_STATES`` states): policy
    iteration (exact evaluation: a dense LU where the dense matrix is no larger than
    the model, else a sparse LU; a handful of improvements).
@@ -27,11 +32,16 @@ measured on families of MDPs, from the problem's size, gamma and structure:
 6. Continuing and large, gamma > 0.99: modified policy iteration with adaptive m
    (partial evaluations carry values further per improvement than single sweeps).
 
-On a :class:`~policylab.mdp.PostDecisionMDP` (a continuing task, gamma < 1) the choice
-is modified policy iteration with adaptive m: a Bellman optimality backup there costs
-one product K v and an (S, A) maximum, a policy's backup the same product and an
-S-long gather, so improvements cost about what evaluation sweeps do and the linear
-solves of policy iteration (GMRES on the same products) do not pay.
+On a :class:`~policylab.mdp.PostDecisionMDP` (a continuing task, gamma < 1):
+
+1. A kernel that is one sparse matrix, and a first policy (greedy in r(s, a)) whose
+   graph splits into small strongly connected components (as in rule 3 above: an
+   inventory): policy iteration, whose exact evaluation is then a back-substitution between the
+   components with a small dense LU for each (no sweeps, no fill-in).
+2. Otherwise modified policy iteration with adaptive m: a Bellman optimality backup
+   there costs one product K v and an (S, A) maximum, a policy's backup the same
+   product and an S-long gather, so improvements cost about what evaluation sweeps do
+   and the linear solves of policy iteration (GMRES on the same products) do not pay.
 
 ``"mpi"`` is modified policy iteration with adaptive m (see
 :func:`~policylab.planning.modified_policy_iteration`).
@@ -42,10 +52,12 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from policylab.exceptions import InvalidArgumentError
 from policylab.mdp.postdecision import PostDecisionMDP
 from policylab.planning._checks import check_gamma, check_tol
-from policylab.planning._kernels import shared_rows
+from policylab.planning._kernels import shared_rows, small_components
 from policylab.planning.control import (
     _all_reach_terminal,
     modified_policy_iteration,
@@ -97,6 +109,17 @@ def choose_method(mdp: FiniteMDP | PostDecisionMDP, gamma: float | None = None) 
         )
     shared = shared_rows(mdp)
     if shared is not None:
+        first = np.where(mdp.action_mask, mdp.expected_reward, -np.inf).argmax(axis=1)
+        row_of = np.arange(mdp.n_states, dtype=np.int64) * mdp.n_actions + first
+        row_of[mdp.terminal] = -1
+        largest = small_components(mdp.indptr, mdp.next_states, mdp.probs, row_of, mdp.nbytes)
+        if largest is not None:
+            return "pi", (
+                f"continuing task whose first policy's graph splits into small strongly "
+                f"connected components (at most {largest:,} states): each exact evaluation "
+                "is a back-substitution with small dense LUs, so policy iteration needs a "
+                "handful of cheap evaluations"
+            )
         n_rows = shared.indptr.shape[0] - 1
         return "mpi", (
             f"continuing task whose {mdp.n_states * mdp.n_actions:,} (state, action) slots "

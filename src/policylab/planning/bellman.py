@@ -276,4 +276,4 @@ def greedy_policy(
         m = mask.astype(np.float64)
         n = m.sum(axis=1, keepdims=True)
         probs = np.divide(m, n, out=np.zeros_like(m), where=n > 0)
-    return Policy.from_array(mdp, probs)
+    return Policy(mdp, probs)  # a float64 (S, A) array already: validated, not converted

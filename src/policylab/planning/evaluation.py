@@ -6,7 +6,10 @@ non-terminal states (terminal states have value 0):
 * a deterministic policy whose transitions, self-loops aside, form no cycle
   (``solver="auto"``; proper policies that head for the goal on grids and chains):
   back-substitution in the order that solves each state after its successors, exact
-  in one pass with no matrix and no fill-in;
+  in one pass with no matrix and no fill-in; with gamma < 1, cycles too, one strongly
+  connected component of the policy's graph at a time (a dense LU for each component
+  whose dense matrix is no larger than the model, back-substitution between them), as
+  in an inventory whose orders cycle only through the low stock levels;
 * small systems (``solver="direct"``, the default below :data:`DIRECT_MAX_STATES`
   non-terminal states): a sparse LU factorisation (SuperLU), exact to rounding;
   with ``solver="auto"``, gamma < 1 and a deterministic policy whose dense S x S
@@ -55,10 +58,12 @@ from policylab.planning._checks import (
     require_terminal_reachable,
 )
 from policylab.planning._kernels import (
+    component_policy_solve,
+    component_solver_name,
+    dense_block_max,
     dense_policy_system,
     gauss_seidel_expectation_sweep,
     policy_matvec,
-    triangular_policy_solve,
 )
 from policylab.planning._sweeps import run_sweeps, span_bounds
 from policylab.planning.bellman import _policy_matrix, _q
@@ -141,13 +146,17 @@ def solve_policy_system(
     b[mdp.terminal] = 0.0
     info: dict[str, Any] = {}
     if solver == "auto" and actions is not None:
-        # An acyclic policy graph (self-loops aside) makes the system triangular:
-        # exact back-substitution in one pass, no matrix, no fill-in (and proper).
-        xt = triangular_policy_solve(mdp, actions, b, gamma)
-        if xt is not None:
+        # Block triangular by the policy graph's strongly connected components: an
+        # acyclic graph (self-loops aside) is exact back-substitution in one pass, no
+        # matrix, no fill-in (and proper); small cycles add small dense LUs.
+        found = component_policy_solve(
+            mdp, actions, b, gamma, dense_block_max(mdp.nbytes) if gamma < 1.0 else 1
+        )
+        if found is not None:
+            xt, largest = found
             res = float(np.abs(b - xt + gamma * policy_matvec(mdp, actions, xt)).max(initial=0.0))
             info.update(
-                solver="direct (back-substitution)",
+                solver=component_solver_name(largest, S),
                 residual=res,
                 error_bound=res / (1.0 - gamma) if gamma < 1.0 else None,
             )

@@ -27,12 +27,21 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numba import njit, prange
 
 from policylab.exceptions import InvalidArgumentError, NotConvergedWarning
 from policylab.planning._checks import check_positive_int, check_tol, check_v
-from policylab.planning._kernels import _parallel
+from policylab.planning._kernels import (
+    _parallel,
+    _row_dots,
+    _row_dots_par,
+    component_solver_name,
+    dense_block_max,
+    small_components,
+    solve_by_components,
+)
 from policylab.planning._sweeps import run_sweeps
 from policylab.planning.bellman import DEFAULT_TIE_TOL, greedy_policy
 from policylab.planning.result import PlanningResult
@@ -103,6 +112,23 @@ def _masked(model: PostDecisionMDP) -> NDArray[np.float64]:
     return cached
 
 
+def _expect(model: PostDecisionMDP, v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """W = K v, (K v)(y) = sum_s' K(s' | y) v(s') (see :meth:`PostDecisionKernel.expect`).
+
+    A kernel that is one sparse matrix is multiplied by the compiled row sums of the
+    planning kernels (the same sums in the same order as SciPy's product, split over
+    numba's threads on large kernels); other kernels by their own ``expect``.
+    """
+    x = np.ascontiguousarray(v, dtype=np.float64)
+    k = model.kernel.factors[0]
+    if len(model.kernel.factors) != 1 or not sp.issparse(k):
+        return model.kernel.expect(x)
+    w = np.empty(k.shape[0])
+    dots = _row_dots_par if _parallel(k.nnz) else _row_dots
+    dots(k.indptr, k.indices, k.data, x, w)
+    return w
+
+
 def optimality_backup(
     model: PostDecisionMDP, gamma: float, v: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -111,7 +137,7 @@ def optimality_backup(
     One product W = K v, then one compiled pass over the (S, A) arrays (split over
     numba's threads on large models; each state's maximum is the same either way).
     """
-    w = model.kernel.expect(np.ascontiguousarray(v, dtype=np.float64))
+    w = _expect(model, v)
     out = np.empty(model.n_states)
     act = np.empty(model.n_states, dtype=np.int64)
     kernel = _backup_par if _parallel(model.post.size) else _backup
@@ -119,10 +145,22 @@ def optimality_backup(
     return out, act
 
 
-def q_values(model: PostDecisionMDP, v: NDArray[np.float64], gamma: float) -> NDArray[np.float64]:
-    """q(s, a) = r(s, a) + gamma (K v)(f(s, a)), -inf where a is not in A(s); (S, A)."""
-    w = model.kernel.expect(np.ascontiguousarray(v, dtype=np.float64))
-    return _masked(model) + gamma * w[model.post]
+def q_values(
+    model: PostDecisionMDP,
+    v: NDArray[np.float64],
+    gamma: float,
+    *,
+    w: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64]:
+    """q(s, a) = r(s, a) + gamma (K v)(f(s, a)), -inf where a is not in A(s); (S, A).
+
+    ``w`` is the product K v when the caller has it already.
+    """
+    w = _expect(model, v) if w is None else w
+    q = w[model.post]  # one (S, A) array, updated in place
+    q *= gamma
+    q += _masked(model)
+    return q
 
 
 def _policy_parts(
@@ -144,6 +182,28 @@ def _check_gamma(model: PostDecisionMDP, gamma: float | None) -> float:
     return g
 
 
+def _by_components(
+    model: PostDecisionMDP, y_pi: NDArray[np.int64], r_pi: NDArray[np.float64], gamma: float
+) -> tuple[NDArray[np.float64], int] | None:
+    """v_pi by strongly connected components of the policy's graph (rows K(. | y_pi(s))).
+
+    Only for a kernel that is one sparse matrix; None otherwise, or when a component is
+    too large for its dense LU (see :func:`~policylab.planning._kernels.solve_by_components`).
+    """
+    kernel = model.kernel.factors[0]
+    if len(model.kernel.factors) != 1 or not sp.issparse(kernel):
+        return None
+    return solve_by_components(
+        kernel.indptr,
+        kernel.indices,
+        kernel.data,
+        y_pi,
+        r_pi,
+        gamma,
+        dense_block_max(model.nbytes),
+    )
+
+
 def evaluate_actions(
     model: PostDecisionMDP,
     actions: NDArray[np.int64],
@@ -154,18 +214,42 @@ def evaluate_actions(
 ) -> tuple[NDArray[np.float64], dict[str, Any]]:
     """v_pi of a deterministic policy: the solution of v = r_pi + gamma P_pi v, P_pi = K[f(., pi)].
 
-    A dense LU up to :data:`DENSE_EVAL_MAX_STATES` states (the rows K(. | f(s, pi(s)))
-    formed), GMRES on the operator v -> v - gamma (K v)(f(., pi)) above, to a residual of
-    ``tol`` (1 - gamma) (default 1e-10 times the value scale max|r| / (1 - gamma)).
+    With a kernel that is one sparse matrix, one strongly connected component of the
+    policy's graph at a time when each is small (back-substitution, and a dense LU per
+    component whose matrix is no larger than the model:
+    :func:`~policylab.planning._kernels.solve_by_components`); otherwise a dense LU up
+    to :data:`DENSE_EVAL_MAX_STATES` states (the rows K(. | f(s, pi(s))) formed), GMRES
+    on the operator v -> v - gamma (K v)(f(., pi)) above, to a residual of ``tol`` (1 -
+    gamma) (default 1e-10 times the value scale max|r| / (1 - gamma)).
 
     Returns:
         v and an info dict: ``solver``, ``residual`` (||r_pi + gamma P_pi v - v||_inf) and
         ``error_bound`` = residual / (1 - gamma) >= max_s |v(s) - v_pi(s)|.
     """
+    v, info, _ = _evaluate(model, actions, gamma, tol=tol, x0=x0)
+    return v, info
+
+
+def _evaluate(
+    model: PostDecisionMDP,
+    actions: NDArray[np.int64],
+    gamma: float,
+    *,
+    tol: float | None = None,
+    x0: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.float64], dict[str, Any], NDArray[np.float64]]:
+    """:func:`evaluate_actions`, and the product K v_pi that its residual took.
+
+    Policy iteration's improvement reuses that product.
+    """
     r_pi, y_pi = _policy_parts(model, actions)
     S = model.n_states
     info: dict[str, Any] = {}
-    if S <= DENSE_EVAL_MAX_STATES:
+    found = _by_components(model, y_pi, r_pi, gamma)
+    if found is not None:
+        v, largest = found
+        info["solver"] = component_solver_name(largest, S)
+    elif S <= DENSE_EVAL_MAX_STATES:
         M = -gamma * model.kernel.dense_rows(y_pi)
         M[np.arange(S), np.arange(S)] += 1.0
         v = np.asarray(np.linalg.solve(M, r_pi), dtype=np.float64)
@@ -175,7 +259,7 @@ def evaluate_actions(
 
         def matvec(x: NDArray[np.float64]) -> NDArray[np.float64]:
             x = np.asarray(x, dtype=np.float64).reshape(-1)
-            return np.asarray(x - gamma * model.kernel.expect(x)[y_pi])
+            return np.asarray(x - gamma * _expect(model, x)[y_pi])
 
         op = spla.LinearOperator((S, S), matvec=matvec, dtype=np.float64)
         scale = max(1.0, float(np.abs(r_pi).max(initial=0.0))) / (1.0 - gamma)
@@ -183,10 +267,11 @@ def evaluate_actions(
         v, its, _ = _gmres_refined(op, r_pi, x0, target)
         info["solver"] = "GMRES"
         info["krylov_iterations"] = its
-    res = float(np.abs(r_pi + gamma * model.kernel.expect(v)[y_pi] - v).max(initial=0.0))
+    w = _expect(model, v)
+    res = float(np.abs(r_pi + gamma * w[y_pi] - v).max(initial=0.0))
     info["residual"] = res
     info["error_bound"] = res / (1.0 - gamma)
-    return v, info
+    return v, info, w
 
 
 def _result(
@@ -285,7 +370,7 @@ def modified_policy_iteration(
         act: NDArray[np.int64],
     ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
         r_pi, y_pi = _policy_parts(model, act)
-        return lambda x: r_pi + g * model.kernel.expect(x)[y_pi]
+        return lambda x: r_pi + g * _expect(model, x)[y_pi]
 
     v, history, sweeps, converged, bound, residual = mpi_iterations(
         lambda x: optimality_backup(model, g, x),
@@ -343,12 +428,13 @@ def policy_iteration(
     rows = np.arange(S)
     current = _masked(model).argmax(axis=1).astype(np.int64)
     v: NDArray[np.float64] | None = None
+    q: NDArray[np.float64] | None = None
     history: list[float] = []
     converged = False
     info: dict[str, Any] = {}
     for _ in range(max_iter):
-        v, info = evaluate_actions(model, current, g, tol=eval_tol, x0=v)
-        q = q_values(model, v, g)
+        v, info, w = _evaluate(model, current, g, tol=eval_tol, x0=v)
+        q = q_values(model, v, g, w=w)
         best_a = q.argmax(axis=1)
         best = q[rows, best_a]
         keep = q[rows, current] >= best - tie_tol * np.maximum(1.0, np.abs(best))
@@ -359,7 +445,7 @@ def policy_iteration(
         if changed == 0:
             converged = True
             break
-    assert v is not None
+    assert v is not None and q is not None
     if not converged:
         warnings.warn(
             f"policy iteration stopped after {len(history)} improvements (max_iter) with "
@@ -371,7 +457,7 @@ def policy_iteration(
 
     return PlanningResult(
         v=v,
-        q=q_values(model, v, g),
+        q=q,
         policy=Policy.from_actions(model, current),  # type: ignore[arg-type]
         iterations=len(history),
         converged=converged,
@@ -388,6 +474,23 @@ def policy_iteration(
 def choose_method(model: PostDecisionMDP, gamma: float | None = None) -> tuple[str, str]:
     """The method ``solve(model, method="auto")`` uses on a post-decision MDP, and why."""
     g = _check_gamma(model, gamma)
+    kernel = model.kernel.factors[0]
+    if len(model.kernel.factors) == 1 and sp.issparse(kernel):
+        first = _masked(model).argmax(axis=1).astype(np.int64)  # policy iteration's start
+        largest = small_components(
+            kernel.indptr,
+            kernel.indices,
+            kernel.data,
+            _policy_parts(model, first)[1],
+            model.nbytes,
+        )
+        if largest is not None:
+            return "pi", (
+                f"post-decision model with one sparse kernel ({model.n_states:,} states) "
+                "whose first policy's graph splits into small strongly connected components "
+                f"(at most {largest:,} states): each exact evaluation is a back-substitution "
+                "with small dense LUs, so policy iteration needs a handful of cheap evaluations"
+            )
     return "mpi", (
         f"post-decision model ({model.n_states:,} states, {model.n_post:,} post-decision "
         f"states, gamma {g:g}): each backup is one product K v plus an (S, A) maximum, and "

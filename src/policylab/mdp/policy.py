@@ -142,6 +142,22 @@ class Policy:
         probs[np.flatnonzero(live), idx[live]] = 1.0
         return cls(mdp, probs)
 
+    @classmethod
+    def _valid(cls, mdp: FiniteMDP, probs: NDArray[np.float64]) -> Policy:
+        """A policy from an (S, A) float64 array already known to be one (no checks, no copy).
+
+        For the solvers' own greedy rows: every non-terminal row a distribution on
+        A(s), every terminal row zero. The array becomes read-only and is kept.
+        """
+        pol = cls.__new__(cls)
+        pol.states = mdp.states
+        pol.actions = mdp.actions
+        pol.terminal = mdp.terminal
+        pol.mask = mdp.action_mask
+        probs.flags.writeable = False
+        pol._probs = probs
+        return pol
+
     # ---------------------------------------------------------------- views
     @property
     def probs(self) -> NDArray[np.float64]:

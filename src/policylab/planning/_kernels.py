@@ -17,12 +17,16 @@ import numpy as np
 from numba import njit, prange
 
 __all__ = [
+    "BLOCK_MIN_OUTCOMES",
     "PARALLEL_MIN_OUTCOMES",
+    "SWEEP_BLOCKS",
     "SharedRows",
+    "SweepBlocks",
     "component_policy_solve",
     "component_solver_name",
     "dense_block_max",
     "dense_policy_system",
+    "first_greedy_probs",
     "gauss_seidel_expectation_sweep",
     "gauss_seidel_optimality_sweep",
     "optimality_sweep",
@@ -33,6 +37,7 @@ __all__ = [
     "shared_rows",
     "small_components",
     "solve_by_components",
+    "sweep_blocks",
     "termination_distances",
 ]
 
@@ -41,7 +46,7 @@ __all__ = [
 _FAST = {"reassoc", "contract", "arcp", "nsz"}
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _split_row(
     indptr: Any, nxt: Any, probs: Any, row: Any, s: Any, v: Any
 ) -> Any:  # pragma: no cover
@@ -68,15 +73,19 @@ def _gs_optimality(
     gamma: float,
     v: Any,
     order: Any,
+    lo: int,
+    hi: int,
 ) -> float:  # pragma: no cover - compiled
-    # R and mask are the flat (S * A,) views; states are visited in ``order``. The
-    # self-loop of each (s, a) is solved exactly: q = (r + gamma sum_{s' != s} p v(s'))
-    # / (1 - gamma p(s | s, a)), the fixed point of that action's own backup at s.
+    # R and mask are the flat (S * A,) views; the states order[lo:hi] are visited in
+    # turn. The self-loop of each (s, a) is solved exactly: q = (r + gamma sum_{s' != s}
+    # p v(s')) / (1 - gamma p(s | s, a)), the fixed point of that action's own backup at
+    # s. ``v`` may be longer than S (see ``_gs_blocks``): ``nxt`` then points some
+    # outcomes at a snapshot v[S + s'] instead of v[s'].
     S = terminal.shape[0]
     A = R.shape[0] // S
     qs = np.empty(A)
     delta = 0.0
-    for i in range(order.shape[0]):
+    for i in range(lo, hi):
         s = order[i]
         if terminal[s]:
             continue
@@ -95,6 +104,91 @@ def _gs_optimality(
         delta = max(delta, abs(best - v[s]))
         v[s] = best
     return delta
+
+
+# Block sweeps: block b visits order[bounds[b]:bounds[b + 1]] in place; every outcome
+# into another block reads the snapshot v[S:] (its ``nxt`` is shifted by S), so no
+# block reads a value another block writes. The blocks run one after the other or on
+# numba's threads, with the same numbers either way.
+
+
+@njit(cache=True, nogil=True)
+def _gs_blocks(
+    indptr: Any,
+    nxt: Any,
+    probs: Any,
+    R: Any,
+    mask: Any,
+    terminal: Any,
+    gamma: float,
+    v: Any,
+    order: Any,
+    bounds: Any,
+    deltas: Any,
+) -> None:  # pragma: no cover - compiled
+    for b in range(deltas.shape[0]):
+        deltas[b] = _gs_optimality(
+            indptr, nxt, probs, R, mask, terminal, gamma, v, order, bounds[b], bounds[b + 1]
+        )
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _gs_blocks_par(
+    indptr: Any,
+    nxt: Any,
+    probs: Any,
+    R: Any,
+    mask: Any,
+    terminal: Any,
+    gamma: float,
+    v: Any,
+    order: Any,
+    bounds: Any,
+    deltas: Any,
+) -> None:  # pragma: no cover - compiled
+    for b in prange(deltas.shape[0]):
+        deltas[b] = _gs_optimality(
+            indptr, nxt, probs, R, mask, terminal, gamma, v, order, bounds[b], bounds[b + 1]
+        )
+
+
+@njit(cache=True, nogil=True)
+def _level_blocks(
+    indptr: Any, nxt: Any, n_actions: int, order: Any, level: Any, n_blocks: int
+) -> Any:  # pragma: no cover - compiled
+    # Each run of equal ``level`` along ``order`` is cut into n_blocks equal parts in
+    # its order, part b going to block b; returns the order block by block (each block
+    # keeping the sweep order), the block bounds, and next_states with the outcomes
+    # into another block than their state's shifted by S.
+    S = order.shape[0]
+    block = np.empty(S, dtype=np.int64)
+    count = np.zeros(n_blocks + 1, dtype=np.int64)
+    i = 0
+    while i < S:
+        j = i
+        while j < S and level[order[j]] == level[order[i]]:
+            j += 1
+        for k in range(i, j):
+            b = (k - i) * n_blocks // (j - i)
+            block[order[k]] = b
+            count[b + 1] += 1
+        i = j
+    for b in range(n_blocks):
+        count[b + 1] += count[b]
+    bounds = count.copy()
+    fill = count[:n_blocks].copy()
+    out = np.empty(S, dtype=np.int64)
+    for k in range(S):
+        s = order[k]
+        out[fill[block[s]]] = s
+        fill[block[s]] += 1
+    shifted = np.empty(nxt.shape[0], dtype=np.int64)
+    for s in range(S):
+        bs = block[s]
+        for k in range(np.int64(indptr[s * n_actions]), np.int64(indptr[(s + 1) * n_actions])):
+            j = np.int64(nxt[k])
+            shifted[k] = j if block[j] == bs else j + S
+    return out, bounds, shifted
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST)
@@ -123,8 +217,52 @@ def _gs_expectation(
     return delta
 
 
+#: In-place sweeps over models with at least this many outcomes are split into
+#: ``SWEEP_BLOCKS`` blocks (see :func:`sweep_blocks`), whatever the number of threads,
+#: so that 1 and 2 threads give the same numbers; below it one block (the plain
+#: Gauss-Seidel sweep) is cheaper than the threads' start-up.
+BLOCK_MIN_OUTCOMES = 100_000
+
+#: The number of blocks of a split in-place sweep (see :data:`BLOCK_MIN_OUTCOMES`).
+SWEEP_BLOCKS = 2
+
+
+class SweepBlocks(NamedTuple):
+    """A split of an in-place sweep into blocks (see :func:`sweep_blocks`)."""
+
+    order: np.ndarray
+    bounds: np.ndarray
+    next_states: np.ndarray
+    work: np.ndarray
+
+
+def sweep_blocks(
+    mdp: Any, order: np.ndarray, level: np.ndarray, n_blocks: int = SWEEP_BLOCKS
+) -> SweepBlocks:
+    """Split an in-place sweep in ``order`` into ``n_blocks`` blocks of states.
+
+    Each run of states of equal ``level`` along ``order`` (the states at one distance
+    from the terminal states, in a terminal-first order) is cut into ``n_blocks`` equal
+    parts, part b going to block b, so that every block holds states at every distance
+    and values flow to the terminal states inside each block. A block sweep (see
+    :func:`gauss_seidel_optimality_sweep`) updates each block's states in place in the
+    sweep order and reads the other blocks' states as they were when the sweep began:
+    Gauss-Seidel inside a block, Jacobi between blocks.
+    """
+    o = np.ascontiguousarray(order, dtype=np.int64)
+    lv = np.ascontiguousarray(level, dtype=np.int64)
+    out, bounds, shifted = _level_blocks(
+        mdp.indptr, mdp.next_states, mdp.n_actions, o, lv, n_blocks
+    )
+    return SweepBlocks(out, bounds, shifted, np.empty(2 * mdp.n_states))
+
+
 def gauss_seidel_optimality_sweep(
-    mdp: Any, gamma: float, v: np.ndarray, order: np.ndarray | None = None
+    mdp: Any,
+    gamma: float,
+    v: np.ndarray,
+    order: np.ndarray | None = None,
+    blocks: SweepBlocks | None = None,
 ) -> float:
     """One in-place sweep v(s) <- max_a q(s, a) over the states in ``order`` (default 0..S-1).
 
@@ -132,24 +270,50 @@ def gauss_seidel_optimality_sweep(
     the backup with its self-loop solved exactly (where 1 - gamma p(s|s, a) > 0), whose
     fixed point is v_* as well: with v = v_* it equals q_*(s, a) for an optimal a and
     is at most v_*(s) for the others. Later states already see the new values of
-    earlier ones. The sweep is a gamma-contraction in the sup norm, whatever the order.
-    Returns max_s |change|.
+    earlier ones. Returns max_s |change|.
+
+    With ``blocks`` (from :func:`sweep_blocks`; ``order`` is then ignored) each block
+    is swept in its own order, in place, while the states of other blocks are read as
+    they were when the sweep began; the blocks run on numba's threads when there are
+    several, with the same result bit for bit (no block reads what another writes).
+
+    Either way the sweep G is a gamma-contraction in the sup norm with fixed point
+    v_*, which is what the stopping rule of :func:`value_iteration` needs. Proof: let
+    u, w be two value vectors and e = max_s |u(s) - w(s)|. The states are updated one
+    at a time within a block; by induction along that order, every value a backup
+    reads differs between the runs from u and from w by at most e (a value from the
+    start of the sweep, or from another block's snapshot) or by at most gamma e <= e
+    (one already updated). A backup's map from the values it reads is monotone with
+    total weight gamma (1 - p(s|s, a)) / (1 - gamma p(s|s, a)) <= gamma on the other
+    states, and max over a keeps that bound, so |(G u)(s) - (G w)(s)| <= gamma e for
+    every s. Then from v_{k+1} = G v_k and v_* = G v_*, ||v_{k+1} - v_*|| <= gamma
+    ||v_k - v_*|| <= gamma (||v_k - v_{k+1}|| + ||v_{k+1} - v_*||), so ||v_{k+1} - v_*||
+    <= gamma / (1 - gamma) max_s |v_{k+1}(s) - v_k(s)|.
     """
-    if order is None:
-        order = np.arange(mdp.n_states, dtype=np.int64)
-    return float(
-        _gs_optimality(
-            mdp.indptr,
-            mdp.next_states,
-            mdp.probs,
-            _reward(mdp).reshape(-1),
-            mdp.action_mask.reshape(-1),
-            mdp.terminal,
-            gamma,
-            v,
-            np.ascontiguousarray(order, dtype=np.int64),
+    R = _reward(mdp).reshape(-1)
+    mask = mdp.action_mask.reshape(-1)
+    if blocks is None:
+        if order is None:
+            order = np.arange(mdp.n_states, dtype=np.int64)
+        o = np.ascontiguousarray(order, dtype=np.int64)
+        return float(
+            _gs_optimality(
+                mdp.indptr, mdp.next_states, mdp.probs, R, mask, mdp.terminal, gamma, v, o,
+                0, o.shape[0],
+            )
         )
+    S = mdp.n_states
+    w = blocks.work
+    w[:S] = v
+    w[S:] = v
+    deltas = np.zeros(blocks.bounds.shape[0] - 1)
+    kernel = _gs_blocks_par if numba.get_num_threads() > 1 else _gs_blocks
+    kernel(
+        mdp.indptr, blocks.next_states, mdp.probs, R, mask, mdp.terminal, gamma, w,
+        blocks.order, blocks.bounds, deltas,
     )
+    v[:] = w[:S]
+    return float(deltas.max(initial=0.0))
 
 
 def gauss_seidel_expectation_sweep(
@@ -410,6 +574,57 @@ def optimality_sweep(
     return out, act
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _first_greedy_row(
+    q: Any, mask: Any, tol: float, s: Any, probs: Any
+) -> None:  # pragma: no cover - compiled
+    # probs[s, a] = 1 for the first a in A(s) with q(s, a) >= best - tol * max(1, |best|),
+    # written with selects (no branch on the values: ties and near-ties are common).
+    A = q.shape[1]
+    best = -np.inf
+    for a in range(A):
+        best = max(best, q[s, a] if mask[s, a] else -np.inf)
+    low = best - tol * max(1.0, abs(best))
+    first = A
+    for a in range(A - 1, -1, -1):
+        x = q[s, a] if mask[s, a] else -np.inf
+        first = a if x >= low else first
+    if first < A and best > -np.inf:
+        probs[s, first] = 1.0
+
+
+@njit(cache=True, nogil=True)
+def _first_greedy(q: Any, mask: Any, terminal: Any, tol: float, probs: Any) -> None:  # pragma: no cover
+    for s in range(terminal.shape[0]):
+        if not terminal[s]:
+            _first_greedy_row(q, mask, tol, s, probs)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _first_greedy_par(
+    q: Any, mask: Any, terminal: Any, tol: float, probs: Any
+) -> None:  # pragma: no cover - compiled
+    for s in prange(terminal.shape[0]):
+        if not terminal[s]:
+            _first_greedy_row(q, mask, tol, s, probs)
+
+
+def first_greedy_probs(mdp: Any, q: np.ndarray, tol: float) -> np.ndarray:
+    """The (S, A) one-hot rows of the first greedy action: the first a in A(s) with
+
+    q(s, a) >= max_{b in A(s)} q(s, b) - tol * max(1, |max_{b in A(s)} q(s, b)|)
+
+    (zero rows on terminal states). One compiled pass over q, on numba's threads from
+    ``BLOCK_MIN_OUTCOMES`` entries of q (each row is one thread's, so the rows are the
+    same either way).
+    """
+    probs = np.zeros((mdp.n_states, mdp.n_actions))
+    qq = np.ascontiguousarray(q, dtype=np.float64)
+    par = qq.size >= BLOCK_MIN_OUTCOMES and numba.get_num_threads() > 1
+    (_first_greedy_par if par else _first_greedy)(qq, mdp.action_mask, mdp.terminal, tol, probs)
+    return probs
+
+
 _MASKED: weakref.WeakKeyDictionary[Any, np.ndarray] = weakref.WeakKeyDictionary()
 
 
@@ -554,26 +769,38 @@ def _progressing_rows(
         out[row] = ok
 
 
+#: The last (allowed mask, distances) of each model: the solvers ask for the distances
+#: under the full action mask several times in one solve (is the task episodic? the
+#: sweep order; a proper first policy), and the model's arrays never change.
+_DISTANCES: weakref.WeakKeyDictionary[Any, tuple[np.ndarray, np.ndarray]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
 def termination_distances(mdp: Any, allowed: np.ndarray) -> np.ndarray:
     """d(s): the fewest steps from s to a terminal state using only ``allowed`` actions.
 
     d(s) = 0 on terminal states, d(s) = 1 + min {d(s') : p(s' | s, a) > 0, a allowed in s}
     elsewhere, and -1 where no terminal state can be reached that way. One breadth-first
-    search backwards from the terminal states, linear in the number of outcomes.
+    search backwards from the terminal states, linear in the number of outcomes; the
+    last mask asked of each model is remembered with its distances.
 
     Args:
         mdp: The FiniteMDP.
         allowed: Boolean (S, A) mask of the actions that may be used.
+
+    Returns:
+        A new (S,) int64 array (the caller may change it).
     """
-    return np.asarray(
-        _termination_distances(
-            mdp.indptr,
-            mdp.next_states,
-            mdp.probs,
-            np.ascontiguousarray(allowed, dtype=np.bool_).reshape(-1),
-            mdp.terminal,
-        )
+    flat = np.ascontiguousarray(allowed, dtype=np.bool_).reshape(-1)
+    found = _DISTANCES.get(mdp)
+    if found is not None and np.array_equal(found[0], flat):
+        return found[1].copy()
+    dist = np.asarray(
+        _termination_distances(mdp.indptr, mdp.next_states, mdp.probs, flat, mdp.terminal)
     )
+    _DISTANCES[mdp] = (flat.copy(), dist.copy())
+    return dist
 
 
 def progressing_actions(mdp: Any, allowed: np.ndarray, dist: np.ndarray) -> np.ndarray:

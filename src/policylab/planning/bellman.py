@@ -266,6 +266,11 @@ def greedy_policy(
         from policylab.exceptions import InvalidArgumentError
 
         raise InvalidArgumentError(f"ties must be 'first' or 'uniform'; got {ties!r}")
+    if ties == "first" and not proper:
+        from policylab.planning._kernels import first_greedy_probs
+
+        t = check_tol(tol, "tol") if tol != 0 else 0.0
+        return Policy._valid(mdp, first_greedy_probs(mdp, check_q(mdp, q), t))
     mask = optimal_actions(mdp, q, tol, proper=proper)
     if ties == "first":
         acts = mask.argmax(axis=1)

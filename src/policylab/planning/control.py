@@ -34,10 +34,12 @@ from policylab.planning._checks import (
     require_terminal_reachable,
 )
 from policylab.planning._kernels import (
+    BLOCK_MIN_OUTCOMES,
     gauss_seidel_optimality_sweep,
     optimality_sweep,
     optimality_values,
     policy_matvec,
+    sweep_blocks,
     termination_distances,
 )
 from policylab.planning._sweeps import run_sweeps, span_bounds
@@ -169,7 +171,12 @@ def value_iteration(
         raise InvalidArgumentError(
             "order applies to in-place sweeps only; pass gauss_seidel=True with it"
         )
-    sweep_order = _sweep_order(mdp, order) if gauss_seidel else None
+    sweep_order, dist = _sweep_order(mdp, order) if gauss_seidel else (None, None)
+    blocks = (
+        sweep_blocks(mdp, sweep_order, dist)
+        if sweep_order is not None and dist is not None and mdp.n_outcomes >= BLOCK_MIN_OUTCOMES
+        else None
+    )
     if v0 is not None:
         start = check_v(mdp, v0, "v0").copy()
     elif gauss_seidel and g < 1.0:
@@ -184,7 +191,7 @@ def value_iteration(
         return optimality_values(mdp, g, v)
 
     def gs(v: NDArray[np.float64]) -> float:
-        return gauss_seidel_optimality_sweep(mdp, g, v, sweep_order)
+        return gauss_seidel_optimality_sweep(mdp, g, v, sweep_order, blocks)
 
     out = run_sweeps(
         synchronous=None if gauss_seidel else sync,
@@ -212,8 +219,15 @@ def value_iteration(
     )
 
 
-def _sweep_order(mdp: FiniteMDP, order: str | ArrayLike) -> NDArray[np.int64]:
-    """The state order of in-place sweeps (see :func:`value_iteration`)."""
+def _sweep_order(
+    mdp: FiniteMDP, order: str | ArrayLike
+) -> tuple[NDArray[np.int64], NDArray[np.int64] | None]:
+    """The state order of in-place sweeps (see :func:`value_iteration`).
+
+    Returns:
+        ``(order, key)``: the permutation, and for the terminal-first order each state's
+        distance to a terminal state by which it was sorted (None for the others).
+    """
     S = mdp.n_states
     if isinstance(order, str):
         if order not in ("auto", "terminal-first", "index"):
@@ -222,10 +236,10 @@ def _sweep_order(mdp: FiniteMDP, order: str | ArrayLike) -> NDArray[np.int64]:
                 f"{S} state indices; got {order!r}"
             )
         if order == "index" or (order == "auto" and not mdp.terminal.any()):
-            return np.arange(S, dtype=np.int64)
+            return np.arange(S, dtype=np.int64), None
         dist = termination_distances(mdp, mdp.action_mask)
         key = np.where(dist < 0, np.iinfo(np.int64).max, dist)
-        return np.argsort(key, kind="stable").astype(np.int64)
+        return np.argsort(key, kind="stable").astype(np.int64), key
     arr = np.asarray(order)
     if (
         arr.shape != (S,)
@@ -236,7 +250,7 @@ def _sweep_order(mdp: FiniteMDP, order: str | ArrayLike) -> NDArray[np.int64]:
             f"order must be a permutation of the {S} state indices 0..{S - 1}; got an array "
             f"of shape {arr.shape} and dtype {arr.dtype}"
         )
-    return arr.astype(np.int64)
+    return arr.astype(np.int64), None
 
 
 def _one_hot(mdp: FiniteMDP, actions: NDArray[np.int64]) -> NDArray[np.float64]:

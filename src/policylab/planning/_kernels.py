@@ -179,13 +179,13 @@ def _level_blocks(
     fill = count[:n_blocks].copy()
     out = np.empty(S, dtype=np.int64)
     for k in range(S):
-        s = order[k]
-        out[fill[block[s]]] = s
-        fill[block[s]] += 1
+        x = order[k]
+        out[fill[block[x]]] = x
+        fill[block[x]] += 1
     shifted = np.empty(nxt.shape[0], dtype=np.int64)
-    for s in range(S):
-        bs = block[s]
-        for k in range(np.int64(indptr[s * n_actions]), np.int64(indptr[(s + 1) * n_actions])):
+    for u in range(S):
+        bs = block[u]
+        for k in range(np.int64(indptr[u * n_actions]), np.int64(indptr[(u + 1) * n_actions])):
             j = np.int64(nxt[k])
             shifted[k] = j if block[j] == bs else j + S
     return out, bounds, shifted
@@ -298,8 +298,17 @@ def gauss_seidel_optimality_sweep(
         o = np.ascontiguousarray(order, dtype=np.int64)
         return float(
             _gs_optimality(
-                mdp.indptr, mdp.next_states, mdp.probs, R, mask, mdp.terminal, gamma, v, o,
-                0, o.shape[0],
+                mdp.indptr,
+                mdp.next_states,
+                mdp.probs,
+                R,
+                mask,
+                mdp.terminal,
+                gamma,
+                v,
+                o,
+                0,
+                o.shape[0],
             )
         )
     S = mdp.n_states
@@ -309,8 +318,17 @@ def gauss_seidel_optimality_sweep(
     deltas = np.zeros(blocks.bounds.shape[0] - 1)
     kernel = _gs_blocks_par if numba.get_num_threads() > 1 else _gs_blocks
     kernel(
-        mdp.indptr, blocks.next_states, mdp.probs, R, mask, mdp.terminal, gamma, w,
-        blocks.order, blocks.bounds, deltas,
+        mdp.indptr,
+        blocks.next_states,
+        mdp.probs,
+        R,
+        mask,
+        mdp.terminal,
+        gamma,
+        w,
+        blocks.order,
+        blocks.bounds,
+        deltas,
     )
     v[:] = w[:S]
     return float(deltas.max(initial=0.0))
@@ -594,7 +612,9 @@ def _first_greedy_row(
 
 
 @njit(cache=True, nogil=True)
-def _first_greedy(q: Any, mask: Any, terminal: Any, tol: float, probs: Any) -> None:  # pragma: no cover
+def _first_greedy(
+    q: Any, mask: Any, terminal: Any, tol: float, probs: Any
+) -> None:  # pragma: no cover - compiled
     for s in range(terminal.shape[0]):
         if not terminal[s]:
             _first_greedy_row(q, mask, tol, s, probs)
@@ -610,11 +630,11 @@ def _first_greedy_par(
 
 
 def first_greedy_probs(mdp: Any, q: np.ndarray, tol: float) -> np.ndarray:
-    """The (S, A) one-hot rows of the first greedy action: the first a in A(s) with
+    """The (S, A) one-hot rows of the first greedy action (zero rows on terminal states).
 
-    q(s, a) >= max_{b in A(s)} q(s, b) - tol * max(1, |max_{b in A(s)} q(s, b)|)
-
-    (zero rows on terminal states). One compiled pass over q, on numba's threads from
+    The first greedy action of s is the first a in A(s) with
+    q(s, a) >= max_{b in A(s)} q(s, b) - tol * max(1, |max_{b in A(s)} q(s, b)|).
+    One compiled pass over q, on numba's threads from
     ``BLOCK_MIN_OUTCOMES`` entries of q (each row is one thread's, so the rows are the
     same either way).
     """

@@ -186,8 +186,8 @@ def _level_blocks(
     for u in range(S):
         bs = block[u]
         for k in range(np.int64(indptr[u * n_actions]), np.int64(indptr[(u + 1) * n_actions])):
-            j = np.int64(nxt[k])
-            shifted[k] = j if block[j] == bs else j + S
+            t = np.int64(nxt[k])
+            shifted[k] = t if block[t] == bs else t + S
     return out, bounds, shifted
 
 

@@ -597,6 +597,16 @@ def parse_args(argv: list[str]) -> Any:
     ap.add_argument("--limit", type=float, default=LIMIT, help="seconds per method (default 30)")
     ap.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md")
     ap.add_argument("--list", action="store_true", help="list the families and exit")
+    ap.add_argument(
+        "--scaling",
+        type=int,
+        default=0,
+        metavar="ROUNDS",
+        help="instead of the suite: auto on 1 thread pinned to core 0 against 2 threads on "
+        "both cores, alternating in one process for ROUNDS rounds per family (default "
+        "families: grid-0.99, grid-0.999, shortest-path, chain-0.999, inventory, "
+        "jacks-car-rental); prints wall and CPU times",
+    )
     args = ap.parse_args(argv)
     fams = [f for f in args.families.split(",") if f]
     bad = [f for f in fams if f not in FAMILIES]
@@ -609,7 +619,10 @@ def parse_args(argv: list[str]) -> Any:
     known = {"policylab", "policylab post-decision", "quantecon", "mdptoolbox-hiive"}
     if not libs <= known:
         ap.error(f"unknown libraries {', '.join(sorted(libs - known))}")
-    args.fams = fams or [f for f in FAMILIES if args.large or f not in LARGE]
+    default = (
+        SCALING_FAMILIES if args.scaling else [f for f in FAMILIES if args.large or f not in LARGE]
+    )
+    args.fams = fams or default
     args.lib_list = [
         lib
         for lib in METHODS
@@ -621,6 +634,66 @@ def parse_args(argv: list[str]) -> Any:
         )
     ]
     return args
+
+
+#: The families of ``--scaling``: those whose auto runs in tens of milliseconds or less.
+SCALING_FAMILIES = [
+    "grid-0.99",
+    "grid-0.999",
+    "shortest-path",
+    "chain-0.999",
+    "inventory",
+    "jacks-car-rental",
+]
+
+
+def scaling(fams: list[str], rounds: int) -> str:
+    """auto on 1 thread on core 0 against 2 threads on both cores, alternating in one process.
+
+    Each round solves once with ``numba.set_num_threads(1)`` and the process pinned to
+    core 0 (``os.sched_setaffinity``, as ``taskset -c 0`` would), then once with 2
+    threads on both cores; the thread pool is started on both cores first. Wall time
+    (``time.perf_counter``) and the process's CPU time (``time.process_time``, all its
+    threads) of every solve; the table gives the median and the fastest of each.
+    """
+    import numba
+
+    from policylab.planning import solve
+
+    both = os.sched_getaffinity(0)
+    lines = [
+        "| family | auto's method | 1 thread, core 0: median / best wall ms | "
+        "2 threads: median / best wall ms | speed-up (median, best) | CPU ms 1 / 2 threads "
+        "(median) |",
+        "|---|---|---:|---:|---:|---:|",
+    ]
+    for fam in fams:
+        # the model auto is best on: the post-decision one where the family has it
+        model = POST_DECISION[fam]() if fam in POST_DECISION else FAMILIES[fam][1]()
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        solve(model, tol=1e-6)  # compile, and start the thread pool on both cores
+        wall: dict[int, list[float]] = {1: [], 2: []}
+        cpu: dict[int, list[float]] = {1: [], 2: []}
+        method = ""
+        for _ in range(rounds):
+            for threads in (1, 2):
+                os.sched_setaffinity(0, {min(both)} if threads == 1 else both)
+                numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+                c0, t0 = time.process_time(), time.perf_counter()
+                res = solve(model, tol=1e-6)
+                wall[threads].append(time.perf_counter() - t0)
+                cpu[threads].append(time.process_time() - c0)
+                method = res.info["auto"]["method"]
+        os.sched_setaffinity(0, both)
+        m1, m2 = np.median(wall[1]), np.median(wall[2])
+        b1, b2 = min(wall[1]), min(wall[2])
+        lines.append(
+            f"| {fam} | {method} | {m1 * 1e3:.2f} / {b1 * 1e3:.2f} | {m2 * 1e3:.2f} / "
+            f"{b2 * 1e3:.2f} | {m1 / m2:.2f}x, {b1 / b2:.2f}x | "
+            f"{np.median(cpu[1]) * 1e3:.2f} / {np.median(cpu[2]) * 1e3:.2f} |"
+        )
+        print(lines[-1], flush=True)
+    return "\n".join(lines)
 
 
 def reference(fam: str, table: Any, pd_model: Any) -> np.ndarray:
@@ -660,6 +733,11 @@ def main() -> int:
     if args.list:
         for name, (title, _) in FAMILIES.items():
             print(f"{name:18s} {title}" + (" [--large]" if name in LARGE else ""))
+        return 0
+    if args.scaling:
+        print(f"load average at the start: {os.getloadavg()}", flush=True)
+        print(scaling(args.fams, args.scaling))
+        print(f"load average at the end: {os.getloadavg()}")
         return 0
     LIMIT = args.limit
     os.environ["BENCH_PLANNING_LIMIT"] = str(LIMIT)

@@ -274,8 +274,7 @@ def proper_policy(mdp: FiniteMDP) -> Policy:
     """
     _require_episodic(mdp, "an episodic task")
     acts = proper_actions(mdp, mdp.action_mask).argmax(axis=1)
-    acts[mdp.terminal] = 0
-    return Policy.from_actions(mdp, acts.astype(np.int64))
+    return Policy._valid(mdp, _one_hot(mdp, acts))  # each row an available action
 
 
 def policy_iteration(
@@ -427,7 +426,8 @@ def policy_iteration(
             NotConvergedWarning,
             stacklevel=2,
         )
-    pol = Policy.from_actions(mdp, np.where(live, current, 0))
+    # current holds each state's argmax of q (-inf off A(s)) or its earlier choice
+    pol = Policy._valid(mdp, _one_hot(mdp, current))
     return PlanningResult(
         v=v,
         q=q,

@@ -913,12 +913,16 @@ NOTES = """Notes.
   v, with a proven bound where gamma < 1; quantecon and hiive: epsilon). "> N s
   (stopped)" means the method hit the time limit (`--limit`). Every worker holds BLAS
   and OpenMP to one thread; the "policylab" rows run numba on 1 thread, the
-  "policylab, 2 threads" rows on 2. Threads are used only by passes that read
-  2,000,000 outcomes (or kernel entries) or more: synchronous sweeps, policy
-  evaluation sweeps and the post-decision product K v of a sparse kernel; below that
-  size, and for Gauss-Seidel sweeps and the back-substitution by components, both
-  rows run the same sequential code (a threaded pass there costs more in start-up and
-  waiting than it saves), so auto on 2 threads differs from 1 thread only by noise.
+  "policylab, 2 threads" rows on 2. Synchronous sweeps, policy evaluation sweeps
+  and the post-decision product K v of a sparse kernel use threads from 2,000,000
+  outcomes (or kernel entries); ordered Gauss-Seidel sweeps and the greedy policy
+  from 100,000 (the grids: the sweep is split into 2 blocks of states, Gauss-Seidel
+  inside each and Jacobi between them, the same split and numbers on 1 and 2
+  threads). Below those sizes, and for the back-substitution by components (policy
+  iteration on the shortest path and the inventories), both rows run the same
+  sequential code, so auto on 2 threads differs from 1 thread only by noise there.
+  `--scaling ROUNDS` times auto alone on 1 thread pinned to one core against 2
+  threads, alternating in one process.
 - "peak extra memory": the memory a solve adds above what the worker held before it
   (the model, converted for the library), the larger of the peak of the arrays it
   allocates from Python (tracemalloc, on one more untimed run of each solve of at

@@ -295,6 +295,15 @@ def best_of(fn: Callable[[], Any], repeats: int = 7) -> float:
     return min(times)
 
 
+def forget(mdp: Any) -> None:
+    """Drop what policylab keeps with a model between solves (its shared rows, the
+    distances to its terminal states), so that each timed solve finds them itself."""
+    from policylab.planning import _kernels
+
+    _kernels._SHARED.pop(mdp, None)
+    _kernels._DISTANCES.pop(mdp, None)
+
+
 def floor_seconds(mdp: Any) -> float:
     """The fastest of a few bare ``P @ v`` products with the (S * A, S) CSR matrix."""
     tm = mdp.transition_matrix
@@ -391,7 +400,7 @@ def worker(lib: str, fam: str, out: str) -> None:
         w = np.zeros(S)
         sweep["vi"] = lambda: postdecision.optimality_backup(mdp, g, w)
     elif ours_lib:
-        from policylab.planning import _kernels, modified_policy_iteration, solve
+        from policylab.planning import modified_policy_iteration, solve
         from policylab.planning._kernels import optimality_values
 
         for name in ("slip-gridworld", "long-chain"):
@@ -412,7 +421,7 @@ def worker(lib: str, fam: str, out: str) -> None:
 
         def ours(method: str) -> Callable[[], tuple[np.ndarray, np.ndarray, int, str]]:
             def run() -> tuple[np.ndarray, np.ndarray, int, str]:
-                _kernels._SHARED.pop(mdp, None)  # each method finds the shared rows itself
+                forget(mdp)
                 res = solve(mdp, method, tol=TARGET)
                 note = res.info.get("auto", {}).get("method", "")
                 return res.v, res.policy.action_indices(), res.iterations, note
@@ -679,6 +688,7 @@ def scaling(fams: list[str], rounds: int) -> str:
             for threads in (1, 2):
                 os.sched_setaffinity(0, {min(both)} if threads == 1 else both)
                 numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+                forget(model)
                 c0, t0 = time.process_time(), time.perf_counter()
                 res = solve(model, tol=1e-6)
                 wall[threads].append(time.perf_counter() - t0)
@@ -930,8 +940,9 @@ NOTES = """Notes.
   the size of the model that the row's library was given (the outcome table, or the
   post-decision model). Arrays allocated inside numba kernels are seen by the RSS
   samples only.
-- Each policylab method finds the model's shared rows itself (the cache is cleared
-  before each method), so its time includes that one pass over the outcome table.
+- Each policylab method finds the model's shared rows and its states' distances to
+  the terminal states itself (the caches are cleared before each run), so its time
+  includes those passes over the outcome table.
 - "one sweep / floor": the fastest of 7 synchronous Bellman optimality sweeps over
   the fastest of 7 bare scipy CSR products P @ v with the (S * A, S) matrix, both in
   the same worker process. Where rows repeat (inventory, Jack's car rental) the sweep

@@ -166,3 +166,26 @@ def test_compiled_greedy_policy_is_the_first_greedy_action(
     expect[live, want[live]] = 1.0
     np.testing.assert_array_equal(pol.probs, expect)
     assert not pol.probs.flags.writeable
+
+
+@pytest.mark.parametrize("n_chunks", [2, 3, 8])
+def test_reversed_graph_is_the_same_in_chunks(n_chunks: int) -> None:
+    mdp = _random_episodic()
+    flat = mdp.action_mask.reshape(-1).copy()
+    flat[::5] = False  # some actions left out
+    args = (mdp.indptr, mdp.next_states, mdp.probs, flat, mdp.n_states)
+    start, src = _kernels._reversed_graph(*args, 1)
+    # the oracle: every allowed (s, a, s') with p > 0, as edges s' <- s, sorted by (s', s)
+    rows = np.repeat(np.arange(flat.shape[0]), np.diff(mdp.indptr))
+    keep = flat[rows] & (mdp.probs > 0)
+    pairs = sorted(
+        zip(mdp.next_states[keep].tolist(), (rows[keep] // mdp.n_actions).tolist(), strict=True)
+    )
+    assert [s for _, s in pairs] == src.tolist()
+    assert np.array_equal(
+        np.diff(start), np.bincount(mdp.next_states[keep], minlength=mdp.n_states)
+    )
+    for kernel in (_kernels._reversed_graph, _kernels._reversed_graph_par):
+        start_c, src_c = kernel(*args, n_chunks)
+        np.testing.assert_array_equal(start_c, start)
+        np.testing.assert_array_equal(src_c, src)

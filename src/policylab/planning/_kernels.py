@@ -737,48 +737,82 @@ def _reward(mdp: Any) -> np.ndarray:
     return np.ascontiguousarray(mdp.expected_reward)
 
 
+# The edges s -> s' with p(s' | s, a) > 0 over the allowed rows (flat (S * A,) mask),
+# reversed into CSR form by a counting sort on s': the sources of the edges into s'
+# are src[start[s']:start[s' + 1]], in increasing order. The states are cut into
+# ``counts.shape[0]`` consecutive chunks, each counted and filled on its own (in turn,
+# or on numba's threads): chunk c's edges into s' go after those of chunks before it,
+# so the result is the same for any number of chunks.
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _chunk_edges(
+    indptr: Any, nxt: Any, probs: Any, allowed: Any, S: int, c: int, counts: Any, src: Any
+) -> None:  # pragma: no cover - compiled
+    # Count chunk c's edges into counts[c] (``src`` empty), or place them at counts[c].
+    A = allowed.shape[0] // S
+    C = counts.shape[0]
+    fill = src.shape[0] > 0
+    for s in range(c * S // C, (c + 1) * S // C):
+        for row in range(s * A, (s + 1) * A):
+            if allowed[row]:
+                for k in range(np.int64(indptr[row]), np.int64(indptr[row + 1])):
+                    if probs[k] > 0.0:
+                        j = np.int64(nxt[k])
+                        if fill:
+                            src[counts[c, j]] = s
+                        counts[c, j] += 1
+
+
+@njit(cache=True, nogil=True)
+def _edge_offsets(counts: Any) -> Any:  # pragma: no cover - compiled
+    # start[j] from the chunks' counts, and each chunk's first slot for target j.
+    C, S = counts.shape
+    start = np.zeros(S + 1, dtype=np.int64)
+    for j in range(S):
+        at = start[j]
+        for c in range(C):
+            n = counts[c, j]
+            counts[c, j] = at
+            at += n
+        start[j + 1] = at
+    return start
+
+
 @njit(cache=True, nogil=True)
 def _reversed_graph(
-    indptr: Any, nxt: Any, probs: Any, allowed: Any, n_states: int, self_loops: bool
+    indptr: Any, nxt: Any, probs: Any, allowed: Any, S: int, n_chunks: int
 ) -> Any:  # pragma: no cover - compiled
-    # The edges s -> s' with p(s' | s, a) > 0 over the allowed rows (flat (S * A,) mask),
-    # reversed into CSR form by a counting sort on s': the sources of the edges into
-    # s' are src[start[s']:start[s' + 1]]. Also each state's number of out-edges.
-    # Self-loops are left out unless ``self_loops``.
-    A = allowed.shape[0] // n_states
-    start = np.zeros(n_states + 1, dtype=np.int64)
-    degree = np.zeros(n_states, dtype=np.int64)
-    for row in range(allowed.shape[0]):
-        if allowed[row]:
-            s = row // A
-            for k in range(np.int64(indptr[row]), np.int64(indptr[row + 1])):
-                j = np.int64(nxt[k])
-                if probs[k] > 0.0 and (self_loops or j != s):
-                    start[j + 1] += 1
-                    degree[s] += 1
-    for s in range(n_states):
-        start[s + 1] += start[s]
-    src = np.empty(start[n_states], dtype=np.int64)
-    fill = start[:n_states].copy()
-    for row in range(allowed.shape[0]):
-        if allowed[row]:
-            s = row // A
-            for k in range(np.int64(indptr[row]), np.int64(indptr[row + 1])):
-                j = np.int64(nxt[k])
-                if probs[k] > 0.0 and (self_loops or j != s):
-                    src[fill[j]] = s
-                    fill[j] += 1
-    return start, src, degree
+    counts = np.zeros((n_chunks, S), dtype=np.int64)
+    none = np.empty(0, dtype=np.int64)
+    for c in range(n_chunks):
+        _chunk_edges(indptr, nxt, probs, allowed, S, c, counts, none)
+    start = _edge_offsets(counts)
+    src = np.empty(start[S], dtype=np.int64)
+    for c in range(n_chunks):
+        _chunk_edges(indptr, nxt, probs, allowed, S, c, counts, src)
+    return start, src
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _reversed_graph_par(
+    indptr: Any, nxt: Any, probs: Any, allowed: Any, S: int, n_chunks: int
+) -> Any:  # pragma: no cover - compiled
+    counts = np.zeros((n_chunks, S), dtype=np.int64)
+    none = np.empty(0, dtype=np.int64)
+    for c in prange(n_chunks):
+        _chunk_edges(indptr, nxt, probs, allowed, S, c, counts, none)
+    start = _edge_offsets(counts)
+    src = np.empty(start[S], dtype=np.int64)
+    for c in prange(n_chunks):
+        _chunk_edges(indptr, nxt, probs, allowed, S, c, counts, src)
+    return start, src
 
 
 @njit(cache=True, nogil=True)
-def _termination_distances(
-    indptr: Any, nxt: Any, probs: Any, allowed: Any, terminal: Any
-) -> Any:  # pragma: no cover - compiled
-    # Breadth-first search backwards from the terminal states over the edges s -> s'
-    # with p(s' | s, a) > 0 for an allowed (s, a) (``allowed`` is the flat (S * A,) mask).
+def _termination_distances(start: Any, src: Any, terminal: Any) -> Any:  # pragma: no cover
+    # Breadth-first search backwards from the terminal states over the reversed edges.
     S = terminal.shape[0]
-    start, src, _ = _reversed_graph(indptr, nxt, probs, allowed, S, True)
     dist = np.full(S, -1, dtype=np.int64)
     queue = np.empty(S, dtype=np.int64)
     tail = 0
@@ -847,9 +881,13 @@ def termination_distances(mdp: Any, allowed: np.ndarray) -> np.ndarray:
     found = _DISTANCES.get(mdp)
     if found is not None and np.array_equal(found[0], flat):
         return found[1].copy()
-    dist = np.asarray(
-        _termination_distances(mdp.indptr, mdp.next_states, mdp.probs, flat, mdp.terminal)
+    par = mdp.n_outcomes >= BLOCK_MIN_OUTCOMES and num_threads() > 1
+    reverse = _reversed_graph_par if par else _reversed_graph
+    S = mdp.n_states
+    start, src = reverse(
+        mdp.indptr, mdp.next_states, mdp.probs, flat, S, num_threads() if par else 1
     )
+    dist = np.asarray(_termination_distances(start, src, mdp.terminal))
     _DISTANCES[mdp] = (flat.copy(), dist.copy())
     return dist
 

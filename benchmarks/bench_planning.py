@@ -661,14 +661,17 @@ def scaling(fams: list[str], rounds: int) -> str:
 
     Each round solves once with ``numba.set_num_threads(1)`` and the process pinned to
     core 0 (``os.sched_setaffinity``, as ``taskset -c 0`` would), then once with 2
-    threads on both cores; the thread pool is started on both cores first. Wall time
+    threads on both cores; the thread pool is started on both cores first, by
+    policylab (``policylab.planning._kernels.num_threads``). Wall time
     (``time.perf_counter``) and the process's CPU time (``time.process_time``, all its
     threads) of every solve; the table gives the median and the fastest of each.
     """
     import numba
 
     from policylab.planning import solve
+    from policylab.planning._kernels import num_threads
 
+    num_threads()  # numba's threads started as policylab starts them (see its docstring)
     both = os.sched_getaffinity(0)
     lines = [
         "| family | auto's method | 1 thread, core 0: median / best wall ms | "

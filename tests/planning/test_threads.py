@@ -189,3 +189,31 @@ def test_reversed_graph_is_the_same_in_chunks(n_chunks: int) -> None:
         start_c, src_c = kernel(*args, n_chunks)
         np.testing.assert_array_equal(start_c, start)
         np.testing.assert_array_equal(src_c, src)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_policy_improvement_keeps_tied_actions(
+    threads: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    if threads > numba.config.NUMBA_NUM_THREADS:
+        pytest.skip("needs 2 numba threads")
+    mdp = jacks_car_rental(max_cars=6, max_move=2)
+    rng = np.random.default_rng(2)
+    q = rng.integers(-3, 3, size=(mdp.n_states, mdp.n_actions)).astype(np.float64)
+    q += rng.choice([0.0, 1e-12, 1e-3], size=q.shape)
+    q[~mdp.action_mask] = -np.inf
+    current = np.array([rng.choice(np.flatnonzero(row)) for row in mdp.action_mask])
+    before = numba.get_num_threads()
+    try:
+        _threads(monkeypatch, threads)
+        new, changed = _kernels.improved_actions(mdp, q, current, 1e-9)
+    finally:
+        numba.set_num_threads(before)
+    # the rule written out with NumPy
+    best_a = q.argmax(axis=1)
+    best = q[np.arange(mdp.n_states), best_a]
+    keep = q[np.arange(mdp.n_states), current] >= best - 1e-9 * np.maximum(1.0, np.abs(best))
+    want = np.where(keep, current, best_a)
+    np.testing.assert_array_equal(new, want)
+    assert changed == int(np.count_nonzero((want != current) & ~mdp.terminal))
+    assert 0 < changed < mdp.n_states

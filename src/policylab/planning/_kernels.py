@@ -30,6 +30,7 @@ __all__ = [
     "first_greedy_probs",
     "gauss_seidel_expectation_sweep",
     "gauss_seidel_optimality_sweep",
+    "improved_actions",
     "num_threads",
     "optimality_sweep",
     "optimality_values",
@@ -674,6 +675,64 @@ def first_greedy_probs(mdp: Any, q: np.ndarray, tol: float) -> np.ndarray:
     par = qq.size >= BLOCK_MIN_OUTCOMES and num_threads() > 1
     (_first_greedy_par if par else _first_greedy)(qq, mdp.action_mask, mdp.terminal, tol, probs)
     return probs
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _improve_row(
+    q: Any, current: Any, tie_tol: float, s: Any, new: Any
+) -> bool:  # pragma: no cover
+    # new[s]: the first argmax of q(s, .) unless current[s] is within the tie tolerance
+    # of it; whether it changed.
+    A = q.shape[1]
+    best = q[s, 0]
+    best_a = 0
+    for a in range(1, A):
+        better = q[s, a] > best
+        best_a = a if better else best_a
+        best = q[s, a] if better else best
+    keep = q[s, current[s]] >= best - tie_tol * max(1.0, abs(best))
+    new[s] = current[s] if keep else best_a
+    return not keep and best_a != current[s]
+
+
+@njit(cache=True, nogil=True)
+def _improve(
+    q: Any, current: Any, terminal: Any, tie_tol: float, new: Any
+) -> int:  # pragma: no cover - compiled
+    changed = 0
+    for s in range(terminal.shape[0]):
+        if _improve_row(q, current, tie_tol, s, new) and not terminal[s]:
+            changed += 1
+    return changed
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _improve_par(
+    q: Any, current: Any, terminal: Any, tie_tol: float, new: Any
+) -> int:  # pragma: no cover - compiled
+    changed = 0
+    for s in prange(terminal.shape[0]):
+        if _improve_row(q, current, tie_tol, s, new) and not terminal[s]:
+            changed += 1
+    return changed
+
+
+def improved_actions(
+    mdp: Any, q: np.ndarray, current: np.ndarray, tie_tol: float
+) -> tuple[np.ndarray, int]:
+    """Policy improvement: pi'(s) = argmax_a q(s, a), keeping pi(s) where it ties.
+
+    pi'(s) = pi(s) if q(s, pi(s)) >= max_a q(s, a) - tie_tol * max(1, |max_a q(s, a)|),
+    else the first maximising a. Returns pi' and the number of non-terminal states whose
+    action changed. One compiled pass over q, on numba's threads from
+    ``BLOCK_MIN_OUTCOMES`` entries (each row is one thread's: the same result).
+    """
+    new = np.empty(mdp.n_states, dtype=np.int64)
+    qq = np.ascontiguousarray(q, dtype=np.float64)
+    cur = np.ascontiguousarray(current, dtype=np.int64)
+    par = qq.size >= BLOCK_MIN_OUTCOMES and num_threads() > 1
+    changed = (_improve_par if par else _improve)(qq, cur, mdp.terminal, tie_tol, new)
+    return new, int(changed)
 
 
 _MASKED: weakref.WeakKeyDictionary[Any, np.ndarray] = weakref.WeakKeyDictionary()

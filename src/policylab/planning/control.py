@@ -36,6 +36,7 @@ from policylab.planning._checks import (
 from policylab.planning._kernels import (
     BLOCK_MIN_OUTCOMES,
     gauss_seidel_optimality_sweep,
+    improved_actions,
     optimality_sweep,
     optimality_values,
     policy_matvec,
@@ -406,12 +407,7 @@ def policy_iteration(
                 )
             v, residual, bound = out.v, out.residual, out.error_bound
         q = _q(mdp, v, g)
-        best_a = q.argmax(axis=1)
-        best = q[np.arange(S), best_a]
-        cur_q = q[np.arange(S), current]
-        keep = cur_q >= best - tie_tol * np.maximum(1.0, np.abs(best))
-        new = np.where(keep, current, best_a)
-        changed = int(np.count_nonzero((new != current) & live))
+        new, changed = improved_actions(mdp, q, current, tie_tol)
         if not history and first_stochastic:
             changed = max(changed, 1)  # a stochastic start always changes to deterministic
         history.append(changed)

@@ -184,13 +184,10 @@ def _gs_blocks_par(
 
 
 @njit(cache=True, nogil=True)
-def _level_blocks(
-    indptr: Any, nxt: Any, n_actions: int, order: Any, level: Any, n_blocks: int, shifted: Any
-) -> Any:  # pragma: no cover - compiled
+def _level_blocks(order: Any, level: Any, n_blocks: int) -> Any:  # pragma: no cover - compiled
     # Each run of equal ``level`` along ``order`` is cut into n_blocks equal parts in
     # its order, part b going to block b; returns the order block by block (each block
-    # keeping the sweep order) and the block bounds, and writes into ``shifted`` the
-    # next states with the outcomes into another block than their state's moved by S.
+    # keeping the sweep order), the block bounds and each state's block.
     S = order.shape[0]
     block = np.empty(S, dtype=np.int64)
     count = np.zeros(n_blocks + 1, dtype=np.int64)
@@ -213,12 +210,34 @@ def _level_blocks(
         x = order[k]
         out[fill[block[x]]] = x
         fill[block[x]] += 1
-    for u in range(S):
-        bs = block[u]
-        for k in range(np.int64(indptr[u * n_actions]), np.int64(indptr[(u + 1) * n_actions])):
-            t = np.int64(nxt[k])
-            shifted[k] = t if block[t] == bs else t + S
-    return out, bounds
+    return out, bounds, block
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _shift_state(
+    indptr: Any, nxt: Any, n_actions: int, block: Any, u: Any, shifted: Any
+) -> None:  # pragma: no cover - compiled
+    # The outcomes of state u's rows, moved by S where they lead into another block.
+    S = block.shape[0]
+    for k in range(np.int64(indptr[u * n_actions]), np.int64(indptr[(u + 1) * n_actions])):
+        t = np.int64(nxt[k])
+        shifted[k] = t if block[t] == block[u] else t + S
+
+
+@njit(cache=True, nogil=True)
+def _shift_outcomes(
+    indptr: Any, nxt: Any, n_actions: int, block: Any, shifted: Any
+) -> None:  # pragma: no cover - compiled
+    for u in range(block.shape[0]):
+        _shift_state(indptr, nxt, n_actions, block, u, shifted)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _shift_outcomes_par(
+    indptr: Any, nxt: Any, n_actions: int, block: Any, shifted: Any
+) -> None:  # pragma: no cover - compiled
+    for u in prange(block.shape[0]):
+        _shift_state(indptr, nxt, n_actions, block, u, shifted)
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST)
@@ -285,7 +304,11 @@ def sweep_blocks(
     # indices up to 2 S - 1, in the table's own integer type where they fit
     wide = 2 * mdp.n_states - 1 > np.iinfo(nxt.dtype).max
     shifted = np.empty(nxt.shape[0], dtype=np.int64 if wide else nxt.dtype)
-    out, bounds = _level_blocks(mdp.indptr, nxt, mdp.n_actions, o, lv, n_blocks, shifted)
+    out, bounds, block = _level_blocks(o, lv, n_blocks)
+    par = mdp.n_outcomes >= BLOCK_MIN_OUTCOMES and num_threads() > 1
+    (_shift_outcomes_par if par else _shift_outcomes)(
+        mdp.indptr, nxt, mdp.n_actions, block, shifted
+    )
     return SweepBlocks(out, bounds, shifted, np.empty(2 * mdp.n_states))
 
 

@@ -14,13 +14,7 @@ from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import NStepWindow, PrioritizedReplayBuffer, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check, check_replay_settings, documented, option
-from policylab.deep.common.mlp_grad import (
-    FlatParameters,
-    NumpyMLP,
-    fused_adam_step,
-    mlp_backward,
-    mlp_forward,
-)
+from policylab.deep.common.mlp_grad import ChainPasses, FlatParameters, NumpyMLP, fused_adam_step
 from policylab.deep.common.networks import clip_grad_norm
 from policylab.deep.dqn.losses import q_learning_targets, td_loss
 from policylab.deep.dqn.networks import QNetwork
@@ -108,8 +102,14 @@ class DQN(Agent):
             self.torch_gen,
         )
         self.q_target = copy.deepcopy(self.q).requires_grad_(False)
-        # the hand-written update keeps all parameters (and gradients) in one flat tensor
-        self._flat = FlatParameters(list(self.q.parameters())) if self.q.chain else None
+        # the hand-written update keeps all parameters (and gradients) in one flat
+        # tensor, each layer as one [W^T; b] block (see ChainPasses)
+        chain = self.q.chain
+        self._flat: FlatParameters | None = None
+        self._passes: ChainPasses | None = None
+        if chain is not None:
+            self._flat = FlatParameters([p for m in chain for p in (m.weight, m.bias)], chain)
+            self._passes = ChainPasses(self._flat, cfg.activation)
         self._params = [self._flat.flat] if self._flat else list(self.q.parameters())
         self.optimizer = torch.optim.Adam(self._params, lr=cfg.learning_rate, fused=True)
         # acting on a few observations: the forward pass in NumPy (see NumpyMLP)
@@ -250,11 +250,11 @@ class DQN(Agent):
         Returns:
             (2,) the round's mean loss and mean Q(S, A), as a tensor.
         """
-        cfg, chain, flat = self.config, self.q.chain, self._flat
-        assert chain is not None and flat is not None
+        cfg, passes, flat = self.config, self._passes, self._flat
+        assert passes is not None and flat is not None
         n, bs = cfg.gradient_steps, cfg.batch_size
         b = self.replay.sample(n * bs)
-        obs = torch.from_numpy(b.obs)
+        obs = passes.with_ones(torch.from_numpy(b.obs))  # [S, 1], once for the round
         actions = torch.from_numpy(b.actions).long().unsqueeze(1)
         returns, discounts = torch.from_numpy(b.returns), torch.from_numpy(b.discounts)
         next_target = self._next_target_q(b.indices)
@@ -285,11 +285,11 @@ class DQN(Agent):
                     y_k = q_learning_targets(
                         returns[s], discounts[s], next_target[s], self.q(next_obs[s])
                     ).unsqueeze(1)
-            q_all, inputs = mlp_forward(chain, self.q.act, obs_k)
+            q_all = passes.forward(obs_k)
             q = torch.gather(q_all, 1, a_k, out=q_k)
             td = torch.sub(y_k, q, out=td_k)
             psi = torch.clamp(td, -1.0, 1.0) if cfg.loss == "huber" else td
-            mlp_backward(chain, self.q.act, inputs, onehot_k * psi)
+            passes.backward(onehot_k * psi)
             flat.clip_grad_norm_(cfg.max_grad_norm)
             fused_adam_step(self.optimizer)
         self.n_updates += n
@@ -333,7 +333,8 @@ class DQN(Agent):
     def _state_tensors(self, training_state: bool) -> dict[str, Any]:
         state: dict[str, Any] = {"q": self.q.state_dict(), "q_target": self.q_target.state_dict()}
         if training_state:
-            state["optimizer"] = self.optimizer.state_dict()
+            opt = self.optimizer.state_dict()
+            state["optimizer"] = self._flat.state_for_checkpoint(opt) if self._flat else opt
             state["replay"] = self.replay.state_dict()
             state["counters"] = {"since_target": self._since_target}
         return state
@@ -344,7 +345,7 @@ class DQN(Agent):
         self.q_target.load_state_dict(tensors["q_target"])
         if "optimizer" in tensors:
             state = tensors["optimizer"]
-            if self._flat is not None:  # a checkpoint from before the flat parameters
+            if self._flat is not None:  # per parameter (older checkpoints) or concatenated
                 state = self._flat.state_from_per_parameter(state)
             self.optimizer.load_state_dict(state)
         if "replay" in tensors:

@@ -216,6 +216,19 @@ def _weight_grad(g: torch.Tensor, h: torch.Tensor, out: torch.Tensor) -> None:
         torch.mm(g.t(), h, out=out)
 
 
+def _block_grad(h: torch.Tensor, g: torch.Tensor, out: torch.Tensor) -> None:
+    """Write [dW^T; db] = [h, 1]^T dz into ``out``, the narrow orientation first.
+
+    For a layer with a few outputs (a Q-head over 2-4 actions) dz^T [h, 1] into a
+    (out, in + 1) product, transposed into place, costs about 7.6 us where the
+    (in + 1, out) product costs 12.5 (a (128, 257) input, 3 outputs).
+    """
+    if 4 * g.shape[1] <= h.shape[1]:
+        out.copy_(torch.mm(g.t(), h).t())
+    else:
+        torch.mm(h.t(), g, out=out)
+
+
 def mlp_backward(
     layers: Sequence[nn.Linear], act: str, inputs: Sequence[torch.Tensor], grad_out: torch.Tensor
 ) -> None:
@@ -365,7 +378,7 @@ class FlatParameters:
         """
         grad = self.flat.grad
         assert grad is not None
-        norm = torch._foreach_norm([grad])[0]
+        norm = torch.linalg.vector_norm(grad)  # what _foreach_norm runs per tensor
         f32 = np.float32
         coef = f32(1.0) / (f32(float(norm)) + f32(1e-6)) * f32(max_norm)
         if coef < 1.0:
@@ -486,7 +499,7 @@ class ChainPasses:
         inputs = [x_ones, *outs]
         g = grad_out
         for i in range(len(self.weights) - 1, -1, -1):
-            torch.mm(inputs[i].t(), g, out=self.grads[i])
+            _block_grad(inputs[i], g, self.grads[i])
             if i > 0:
                 dh = torch.mm(g, self.weights[i][:-1].t(), out=grads[i - 1])
                 g = activation_backward(dh, outs[i - 1][:, :-1], self.act, out=dh)

@@ -163,18 +163,22 @@ class DQN(Agent):
         return int(getattr(self.action_space, "n", 0))
 
     def _act(self, obs: torch.Tensor, deterministic: bool) -> NDArray[Any]:
-        if deterministic:
-            return self._greedy(obs)
-        n = len(obs)
+        x = obs.numpy()
+        return self._greedy(x) if deterministic else self._epsilon_greedy(x)
+
+    def _epsilon_greedy(self, x: NDArray[Any]) -> NDArray[Any]:
+        """Epsilon-greedy actions for a batch of prepared observations (NumPy)."""
+        n = len(x)
         explore = self.rng.random(n) < self.epsilon
         random_actions = self.rng.integers(0, self.n_actions, n)
         if explore.all():  # no greedy action is needed: skip the forward pass
             return random_actions
-        return np.where(explore, random_actions, self._greedy(obs))
+        return np.where(explore, random_actions, self._greedy(x))
 
-    def _greedy(self, obs: torch.Tensor) -> NDArray[Any]:
+    def _greedy(self, obs: torch.Tensor | NDArray[Any]) -> NDArray[Any]:
         """argmax_a Q(s, a) for a batch."""
-        return _q_values(self._np_q, self.q, obs.numpy()).argmax(1)  # type: ignore[no-any-return]
+        x = obs.numpy() if isinstance(obs, torch.Tensor) else obs
+        return _q_values(self._np_q, self.q, x).argmax(1)  # type: ignore[no-any-return]
 
     def _iteration(self) -> dict[str, float]:
         cfg = self.config
@@ -188,8 +192,7 @@ class DQN(Agent):
             if self.num_timesteps < cfg.learning_starts:
                 actions = self.rng.integers(0, self.n_actions, n)
             else:
-                with torch.inference_mode():
-                    actions = self._act(torch.as_tensor(x), deterministic=False)
+                actions = self._epsilon_greedy(x)
             next_obs, rew, term, trunc, valid = self._env_step(actions)
             done_steps = int(valid.sum())
             steps += max(done_steps, 1)

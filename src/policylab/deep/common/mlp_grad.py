@@ -469,9 +469,9 @@ class ChainPasses:
     def _layer_buffers(self, batch: int) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
         """Per hidden layer: its output [h, 1] (ones in the last column) and dL/dz."""
         if batch not in self._buffers:
-            widths = [w.shape[1] for w in self.weights[:-1]]
-            outs = [torch.ones(batch, n + 1) for n in widths]
-            grads = [torch.empty(batch, n) for n in widths]
+            widths, dtype = [w.shape[1] for w in self.weights[:-1]], self.weights[0].dtype
+            outs = [torch.ones(batch, n + 1, dtype=dtype) for n in widths]
+            grads = [torch.empty(batch, n, dtype=dtype) for n in widths]
             self._buffers[batch] = (outs, grads)
         return self._buffers[batch]
 

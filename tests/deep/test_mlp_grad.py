@@ -15,13 +15,13 @@ from policylab.deep.common.mlp_grad import (
     mlp_layers,
 )
 from policylab.deep.common.networks import MLP, build_torso
-from policylab.exceptions import InvalidArgumentError
 from policylab.deep.ppo.losses import (
     clipped_surrogate_loss,
     clipped_surrogate_loss_grad,
     value_loss,
     value_loss_grad,
 )
+from policylab.exceptions import InvalidArgumentError
 
 
 @pytest.mark.parametrize("act", ["tanh", "relu", "elu"])

@@ -13,10 +13,9 @@ Gymnasium's default next-step autoreset mode, which the agents rely on.
 
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
 import math
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -127,7 +126,9 @@ def make_vec_env(env: EnvLike, n_envs: int = 1) -> VectorEnv:
             spec = check_env_id(env)
             vectorised = env == "Acrobot-v1" or spec.vector_entry_point is not None
             if n_envs == 1 and env == "Acrobot-v1":  # Gymnasium's env, stepped on floats
-                return OneEnvVector(gym.make(dataclasses.replace(spec, entry_point=ScalarAcrobotEnv)))
+                return OneEnvVector(
+                    gym.make(dataclasses.replace(spec, entry_point=ScalarAcrobotEnv))
+                )
             if n_envs == 1 and vectorised:
                 return OneEnvVector(_make(env))
             if env == "Acrobot-v1":
@@ -254,6 +255,11 @@ def acrobot_derivatives(
     return dtheta1, dtheta2, ddtheta1, ddtheta2
 
 
+def _axpy(y: list[float], h: float, k: tuple[float, ...]) -> list[float]:
+    """Y + h k, elementwise (a Runge-Kutta stage's state)."""
+    return [yi + h * ki for yi, ki in zip(y, k, strict=True)]
+
+
 class ScalarAcrobotEnv(AcrobotEnv):
     """Gymnasium's ``AcrobotEnv`` with its step computed on Python floats.
 
@@ -271,16 +277,16 @@ class ScalarAcrobotEnv(AcrobotEnv):
         """One step of ``dt`` under the torque of action ``a`` (0, 1, 2: -1, 0, +1)."""
         s = self.state
         if s is None or self.torque_noise_max > 0 or self.book_or_nips != "book":
-            return super().step(a)  # type: ignore[no-any-return]
+            return super().step(a)  # type: ignore[no-any-return,no-untyped-call]
         cos, sin, pi = math.cos, math.sin, np.pi
         y0 = [float(v) for v in s]
         torque = float(self.AVAIL_TORQUE[a])
         dt = self.dt - 0  # rk4 over t = [0, dt], as gymnasium's acrobot.rk4
         dt2 = dt / 2.0
         k1 = acrobot_derivatives(*y0, torque, cos, sin)
-        k2 = acrobot_derivatives(*[y + dt2 * k for y, k in zip(y0, k1)], torque, cos, sin)
-        k3 = acrobot_derivatives(*[y + dt2 * k for y, k in zip(y0, k2)], torque, cos, sin)
-        k4 = acrobot_derivatives(*[y + dt * k for y, k in zip(y0, k3)], torque, cos, sin)
+        k2 = acrobot_derivatives(*_axpy(y0, dt2, k1), torque, cos, sin)
+        k3 = acrobot_derivatives(*_axpy(y0, dt2, k2), torque, cos, sin)
+        k4 = acrobot_derivatives(*_axpy(y0, dt, k3), torque, cos, sin)
         ns = [
             y + dt / 6.0 * (p + 2 * q + 2 * r + w)
             for y, p, q, r, w in zip(y0, k1, k2, k3, k4, strict=True)

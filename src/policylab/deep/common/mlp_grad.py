@@ -347,9 +347,11 @@ class FlatParameters:
         )
 
     def state_for_checkpoint(self, state: dict[str, Any]) -> dict[str, Any]:
-        """The flat optimizer's ``state_dict`` with its moments as the parameters one
-        after the other, whatever the buffer's layout (how checkpoints store them;
-        :meth:`state_from_per_parameter` reads it back)."""
+        """The flat optimizer's ``state_dict`` with its moments in concatenated order.
+
+        Checkpoints store the moments as the parameters one after the other, whatever
+        the buffer's layout; :meth:`state_from_per_parameter` reads them back.
+        """
         return self._relayout(state, self.concatenated)
 
     def _relayout(self, state: dict[str, Any], fn: Any) -> dict[str, Any]:
@@ -378,7 +380,7 @@ class FlatParameters:
         """
         grad = self.flat.grad
         assert grad is not None
-        norm = torch.linalg.vector_norm(grad)  # what _foreach_norm runs per tensor
+        norm: torch.Tensor = torch.linalg.vector_norm(grad)  # _foreach_norm runs this per tensor
         f32 = np.float32
         coef = f32(1.0) / (f32(float(norm)) + f32(1e-6)) * f32(max_norm)
         if coef < 1.0:
@@ -477,8 +479,10 @@ class ChainPasses:
 
     @torch.no_grad()
     def forward(self, x_ones: torch.Tensor) -> torch.Tensor:
-        """The network's output for inputs [x, 1] (:meth:`with_ones`); keeps what
-        :meth:`backward` needs (until the next call)."""
+        """The network's output for inputs [x, 1] (:meth:`with_ones`).
+
+        Keeps what :meth:`backward` needs, until the next call.
+        """
         outs, grads = self._layer_buffers(len(x_ones))
         h = x_ones
         for block, out in zip(self.weights[:-1], outs, strict=True):

@@ -144,7 +144,8 @@ class DQN(Agent):
         self._since_target = 0
         # Q_target(S', .) of stored transitions, each computed once per target network
         self._target_q: NDArray[np.float32] | None = None
-        self._np_q_target = NumpyMLP(self.q_target.chain, cfg.activation) if chain else None
+        target_chain = self.q_target.chain
+        self._np_q_target = NumpyMLP(target_chain, cfg.activation) if target_chain else None
         self._target_q_fresh = np.zeros(cfg.buffer_size, dtype=bool)
 
     @property

@@ -267,7 +267,7 @@ _PHASES: dict[tuple[str, str], dict[str, list[tuple[str, str]]]] = {
     },
     ("policylab", "dqn"): {
         "env": [],
-        "forward": [("policylab/deep/dqn/agent.py", "_act")],
+        "forward": [("policylab/deep/dqn/agent.py", "_epsilon_greedy")],
         "update": [("policylab/deep/dqn/agent.py", "_update")],
     },
     ("SB3", "ppo"): {
@@ -522,12 +522,37 @@ def per_step_table(results: list[StepResult]) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--seeds", type=int, default=5)
-    ap.add_argument("--envs", default="CartPole-v1")
-    ap.add_argument("--algos", default="ppo,dqn")
-    ap.add_argument("--no-write", action="store_true")
-    ap.add_argument("--section", default=None)
+    ap = argparse.ArgumentParser(
+        description="policylab's PPO and DQN against Stable-Baselines3: env steps per "
+        "CPU-second at identical settings (--per-step), or CPU time to the first solved "
+        "evaluation with each library's recommended settings (the default).",
+    )
+    ap.add_argument(
+        "--seeds",
+        type=int,
+        default=5,
+        help="time to solve: seeds per library, algorithm and env (0 .. SEEDS-1; default 5)",
+    )
+    ap.add_argument(
+        "--envs",
+        default="CartPole-v1",
+        help="comma-separated Gymnasium ids: CartPole-v1, Acrobot-v1, LunarLander-v3, "
+        "ALE/Pong-v5 (--per-step only) (default CartPole-v1)",
+    )
+    ap.add_argument(
+        "--algos", default="ppo,dqn", help="comma-separated algorithms: ppo, dqn (default both)"
+    )
+    ap.add_argument(
+        "--no-write",
+        action="store_true",
+        help="print the table only; by default it also replaces its section of BENCHMARKS.md",
+    )
+    ap.add_argument(
+        "--section",
+        default=None,
+        help="the BENCHMARKS.md section to write (default: 'Deep RL: per step at identical "
+        "settings' with --per-step, else 'Deep RL: time to first solve')",
+    )
     ap.add_argument(
         "--per-step",
         action="store_true",
@@ -538,7 +563,12 @@ def main() -> None:
         action="store_true",
         help="time to solve: also run policylab with the zoo's settings exactly",
     )
-    ap.add_argument("--rounds", type=int, default=3, help="timed runs per library (--per-step)")
+    ap.add_argument(
+        "--rounds",
+        type=int,
+        default=3,
+        help="--per-step: timed runs per library, the libraries alternating (default 3)",
+    )
     ap.add_argument(
         "--matmul-bound",
         action="store_true",
@@ -585,10 +615,11 @@ def main() -> None:
             "The split (env step, policy forward on the acting path, update, rest) is the "
             "share of one further cProfile'd run of each (cProfile adds a per-call cost, "
             "so it overstates Python-heavy parts). The env step is each library's own: "
-            "policylab steps CartPole-v1 with Gymnasium's NumPy-vectorised CartPole and "
-            "Acrobot-v1 with its own NumPy-vectorised Acrobot (Gymnasium's dynamics bit "
-            "for bit), SB3 both with a DummyVecEnv of single envs; LunarLander-v3 is a "
-            "loop over single envs in both."
+            "policylab steps CartPole-v1 with Gymnasium's CartPole (NumPy-vectorised for "
+            "several envs) and Acrobot-v1 with its own Acrobot (Gymnasium's dynamics bit "
+            "for bit: NumPy-vectorised for several envs, on Python floats for one), SB3 "
+            "both with a DummyVecEnv of single envs; LunarLander-v3 is a loop over single "
+            "envs in both."
         )  # fmt: skip
     else:
         section = args.section or "Deep RL: time to first solve"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -62,3 +64,31 @@ def test_agents_get_it_for_acrobot_and_train_on_it() -> None:
     assert agent.num_timesteps >= 1100 and agent.episodes >= 2  # each copy hit 500 steps
     returns = pl.deep.evaluate(agent, episodes=3, seed=0)
     assert returns.shape == (3,) and np.all(returns >= -500)
+
+
+def test_scalar_acrobot_steps_as_gymnasium_bit_for_bit() -> None:
+    from policylab.deep.common.envs import ScalarAcrobotEnv
+
+    ours = gym.make(dataclasses.replace(gym.spec("Acrobot-v1"), entry_point=ScalarAcrobotEnv))
+    ref = gym.make("Acrobot-v1")
+    assert isinstance(ours.unwrapped, ScalarAcrobotEnv)
+    rng = np.random.default_rng(1)
+    ends = 0
+    for episode in range(12):  # terminations, and time limits while random
+        o1, _ = ours.reset(seed=episode)
+        o2, _ = ref.reset(seed=episode)
+        assert np.array_equal(o1, o2)
+        done = False
+        while not done:
+            # mostly torque along the second joint's velocity (swings up), else random;
+            # the last two episodes random only (they run into the time limit)
+            swing = episode < 10 and rng.random() < 0.7
+            a = 2 * int(o1[5] > 0) if swing else int(rng.integers(3))
+            o1, r1, te1, tr1, _ = ours.step(a)
+            o2, r2, te2, tr2, _ = ref.step(a)
+            assert o1.dtype == o2.dtype and np.array_equal(o1, o2)
+            assert (r1, te1, tr1) == (r2, te2, tr2) and type(r1) is type(r2)
+            assert np.array_equal(ours.unwrapped.state, ref.unwrapped.state)  # type: ignore[attr-defined]
+            done = te1 or tr1
+            ends += te1
+    assert ends >= 8 and not te1 and tr1  # whole episodes of both kinds

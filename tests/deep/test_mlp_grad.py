@@ -8,6 +8,7 @@ import torch
 from torch import nn
 
 from policylab.deep.common.mlp_grad import (
+    ChainPasses,
     FlatParameters,
     mlp_backward,
     mlp_forward,
@@ -20,6 +21,7 @@ from policylab.deep.ppo.losses import (
     value_loss,
     value_loss_grad,
 )
+from policylab.exceptions import InvalidArgumentError
 
 
 @pytest.mark.parametrize("act", ["tanh", "relu", "elu"])
@@ -41,6 +43,64 @@ def test_mlp_backward_equals_autograd(act: str) -> None:
     mlp_backward(chain, act, inputs, torch.cos(out) * w)
     for p, e in zip(net.parameters(), expected, strict=True):
         torch.testing.assert_close(p.grad, e, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("act", ["tanh", "relu", "elu"])
+def test_chain_passes_on_weight_and_bias_blocks_equal_autograd(act: str) -> None:
+    # 6 -> 9 -> 8 -> 2: the head's narrow gradient takes the transposed product
+    g = torch.Generator().manual_seed(1)
+    net = MLP(6, (9, 8), 2, act, generator=g).double()
+    chain = mlp_layers(net)
+    assert chain is not None
+    before = [p.detach().clone() for p in net.parameters()]
+    flat = FlatParameters(list(net.parameters()), chain)
+    assert all(torch.equal(p, b) for p, b in zip(net.parameters(), before, strict=True))
+    block = flat.blocks(flat.flat.detach())[1]  # [W^T; b] of the middle layer
+    assert torch.equal(block[:-1], chain[1].weight.t()) and torch.equal(block[-1], chain[1].bias)
+    passes = ChainPasses(flat, act)
+    for batch in (5, 13, 5):  # buffers per batch size, reused
+        x = torch.randn(batch, 6, dtype=torch.float64, generator=g)
+        w = torch.randn(batch, 2, dtype=torch.float64, generator=g)
+        net.zero_grad(set_to_none=False)
+        (torch.sin(net(x)) * w).sum().backward()  # type: ignore[no-untyped-call]
+        expected = [p.grad.clone() for p in net.parameters()]  # type: ignore[union-attr]
+        flat.flat.grad.fill_(7.0)  # type: ignore[union-attr]  # overwritten, not added to
+        out = passes.forward(passes.with_ones(x))
+        torch.testing.assert_close(out, net(x).detach(), rtol=0, atol=1e-12)
+        passes.backward(torch.cos(out) * w)
+        for p, e in zip(net.parameters(), expected, strict=True):
+            torch.testing.assert_close(p.grad, e, rtol=0, atol=1e-12)
+
+
+def test_chain_layout_keeps_optimizer_state_in_checkpoints_as_concatenated() -> None:
+    net = MLP(3, (4,), 2, generator=torch.Generator().manual_seed(0))
+    chain = mlp_layers(net)
+    assert chain is not None
+    with pytest.raises(InvalidArgumentError, match="chain's weights and biases"):
+        FlatParameters(list(net.parameters())[::-1], chain)
+    flat = FlatParameters(list(net.parameters()), chain)
+    opt = torch.optim.Adam([flat.flat], lr=0.1)
+    flat.flat.grad.copy_(torch.arange(flat.flat.numel(), dtype=torch.float32))  # type: ignore[union-attr]
+    opt.step()
+    state = opt.state_dict()
+    saved = flat.state_for_checkpoint(state)
+    moments = state["state"][0]["exp_avg"]
+    torch.testing.assert_close(  # the parameters one after the other, row-major
+        saved["state"][0]["exp_avg"],
+        torch.cat([flat.view(moments, i).reshape(-1) for i in range(4)]),
+        rtol=0,
+        atol=0,
+    )
+    back = flat.state_from_per_parameter(saved)
+    for key in ("exp_avg", "exp_avg_sq"):
+        assert torch.equal(back["state"][0][key], state["state"][0][key])
+    # a per-parameter state (older checkpoints) lands in the same places
+    per = {
+        "state": {i: {"step": state["state"][0]["step"], "exp_avg": flat.view(moments, i).clone()}
+                  for i in range(4)},
+        "param_groups": [{**state["param_groups"][0], "params": [0, 1, 2, 3]}],
+    }  # fmt: skip
+    assert torch.equal(flat.state_from_per_parameter(per)["state"][0]["exp_avg"], moments)
 
 
 def test_mlp_layers_refuses_what_is_not_a_plain_mlp() -> None:

@@ -126,6 +126,7 @@ class Agent(ABC):
         self.n_updates = 0
         self.episodes = 0
         self.recent_returns: deque[float] = deque(maxlen=100)
+        self._recent_mean: tuple[Any, float] = (None, 0.0)  # (key, mean) of the above
         self.rng = np.random.default_rng(self.config.seed)
         self.torch_gen = torch.Generator().manual_seed(int(self.rng.integers(2**62)))
         self.obs_normalizer = (
@@ -258,7 +259,12 @@ class Agent(ABC):
 
     def recent_mean_return(self) -> float | None:
         """Mean return of the last (up to) 100 training episodes, or None before the first."""
-        return float(np.mean(self.recent_returns)) if self.recent_returns else None
+        if not self.recent_returns:
+            return None
+        key = (self.episodes, len(self.recent_returns), self.recent_returns[-1])
+        if self._recent_mean[0] != key:  # computed again only after an episode ends
+            self._recent_mean = (key, float(np.mean(self.recent_returns)))
+        return self._recent_mean[1]
 
     # -------------------------------------------------------------- training
     def learn(

@@ -14,13 +14,7 @@ from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import NStepWindow, PrioritizedReplayBuffer, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check, check_replay_settings, documented, option
-from policylab.deep.common.mlp_grad import (
-    FlatParameters,
-    NumpyMLP,
-    fused_adam_step,
-    mlp_backward,
-    mlp_forward,
-)
+from policylab.deep.common.mlp_grad import ChainPasses, FlatParameters, NumpyMLP, fused_adam_step
 from policylab.deep.common.networks import clip_grad_norm
 from policylab.deep.dqn.losses import q_learning_targets, td_loss
 from policylab.deep.dqn.networks import QNetwork
@@ -79,6 +73,24 @@ class DQNConfig(BaseConfig):
         check(self.loss in ("huber", "mse"), f"loss must be 'huber' or 'mse'; got {self.loss!r}")
 
 
+NUMPY_ROWS = 64
+"""Up to this many rows, NumPy's forward pass of an MLP costs less than torch's."""
+
+
+def _q_values(np_net: NumpyMLP | None, net: QNetwork, obs: NDArray[Any]) -> NDArray[np.float32]:
+    """Q(s, .) for a batch of observations, as a NumPy array.
+
+    NumPy's forward pass (:class:`~policylab.deep.common.mlp_grad.NumpyMLP`) for up to
+    :data:`NUMPY_ROWS` observations, where torch's per-operation cost exceeds the
+    arithmetic (a 6-256-256-3 network on 35 rows: about 30 us against 60 us), else
+    torch's; the two may round the products differently in the last place.
+    """
+    if np_net is not None and len(obs) <= NUMPY_ROWS:
+        return np_net(obs)  # type: ignore[no-any-return]
+    with torch.no_grad():
+        return net(torch.from_numpy(obs)).numpy()  # type: ignore[no-any-return]
+
+
 class DQN(Agent):
     """DQN: epsilon-greedy experience in a replay buffer and TD updates toward a target network.
 
@@ -108,8 +120,14 @@ class DQN(Agent):
             self.torch_gen,
         )
         self.q_target = copy.deepcopy(self.q).requires_grad_(False)
-        # the hand-written update keeps all parameters (and gradients) in one flat tensor
-        self._flat = FlatParameters(list(self.q.parameters())) if self.q.chain else None
+        # the hand-written update keeps all parameters (and gradients) in one flat
+        # tensor, each layer as one [W^T; b] block (see ChainPasses)
+        chain = self.q.chain
+        self._flat: FlatParameters | None = None
+        self._passes: ChainPasses | None = None
+        if chain is not None:
+            self._flat = FlatParameters([p for m in chain for p in (m.weight, m.bias)], chain)
+            self._passes = ChainPasses(self._flat, cfg.activation)
         self._params = [self._flat.flat] if self._flat else list(self.q.parameters())
         self.optimizer = torch.optim.Adam(self._params, lr=cfg.learning_rate, fused=True)
         # acting on a few observations: the forward pass in NumPy (see NumpyMLP)
@@ -125,7 +143,9 @@ class DQN(Agent):
         self.window = NStepWindow(cfg.n_envs, cfg.n_step, cfg.gamma)
         self._since_target = 0
         # Q_target(S', .) of stored transitions, each computed once per target network
-        self._target_q: torch.Tensor | None = None
+        self._target_q: NDArray[np.float32] | None = None
+        target_chain = self.q_target.chain
+        self._np_q_target = NumpyMLP(target_chain, cfg.activation) if target_chain else None
         self._target_q_fresh = np.zeros(cfg.buffer_size, dtype=bool)
 
     @property
@@ -144,20 +164,22 @@ class DQN(Agent):
         return int(getattr(self.action_space, "n", 0))
 
     def _act(self, obs: torch.Tensor, deterministic: bool) -> NDArray[Any]:
-        if deterministic:
-            return self._greedy(obs)
-        n = len(obs)
+        x = obs.numpy()
+        return self._greedy(x) if deterministic else self._epsilon_greedy(x)
+
+    def _epsilon_greedy(self, x: NDArray[Any]) -> NDArray[Any]:
+        """Epsilon-greedy actions for a batch of prepared observations (NumPy)."""
+        n = len(x)
         explore = self.rng.random(n) < self.epsilon
         random_actions = self.rng.integers(0, self.n_actions, n)
         if explore.all():  # no greedy action is needed: skip the forward pass
             return random_actions
-        return np.where(explore, random_actions, self._greedy(obs))
+        return np.where(explore, random_actions, self._greedy(x))
 
-    def _greedy(self, obs: torch.Tensor) -> NDArray[Any]:
-        """argmax_a Q(s, a) for a batch (NumPy's forward pass for up to 64 observations)."""
-        if self._np_q is not None and len(obs) <= 64:
-            return self._np_q(obs.numpy()).argmax(1)  # type: ignore[no-any-return]
-        return self.q(obs).argmax(dim=1).numpy()  # type: ignore[no-any-return]
+    def _greedy(self, obs: torch.Tensor | NDArray[Any]) -> NDArray[Any]:
+        """argmax_a Q(s, a) for a batch."""
+        x = obs.numpy() if isinstance(obs, torch.Tensor) else obs
+        return _q_values(self._np_q, self.q, x).argmax(1)  # type: ignore[no-any-return]
 
     def _iteration(self) -> dict[str, float]:
         cfg = self.config
@@ -171,8 +193,7 @@ class DQN(Agent):
             if self.num_timesteps < cfg.learning_starts:
                 actions = self.rng.integers(0, self.n_actions, n)
             else:
-                with torch.inference_mode():
-                    actions = self._act(torch.as_tensor(x), deterministic=False)
+                actions = self._epsilon_greedy(x)
             next_obs, rew, term, trunc, valid = self._env_step(actions)
             done_steps = int(valid.sum())
             steps += max(done_steps, 1)
@@ -250,11 +271,11 @@ class DQN(Agent):
         Returns:
             (2,) the round's mean loss and mean Q(S, A), as a tensor.
         """
-        cfg, chain, flat = self.config, self.q.chain, self._flat
-        assert chain is not None and flat is not None
+        cfg, passes, flat = self.config, self._passes, self._flat
+        assert passes is not None and flat is not None
         n, bs = cfg.gradient_steps, cfg.batch_size
         b = self.replay.sample(n * bs)
-        obs = torch.from_numpy(b.obs)
+        obs = passes.with_ones(torch.from_numpy(b.obs))  # [S, 1], once for the round
         actions = torch.from_numpy(b.actions).long().unsqueeze(1)
         returns, discounts = torch.from_numpy(b.returns), torch.from_numpy(b.discounts)
         next_target = self._next_target_q(b.indices)
@@ -268,6 +289,8 @@ class DQN(Agent):
         c = (1.0 if cfg.loss == "huber" else 2.0) / bs
         signed_onehot = torch.zeros(n * bs, self.n_actions).scatter_(1, actions, -c)
         td_all, q_taken = torch.empty(n, bs, 1), torch.empty(n, bs, 1)
+        psi_buf, grad_out = torch.empty(bs, 1), torch.empty(bs, self.n_actions)
+        huber = cfg.loss == "huber"
         per_step = zip(
             [None] * n if y_all is None else y_all.view(n, bs, 1).unbind(0),
             obs.view(n, bs, *obs.shape[1:]).unbind(0),
@@ -285,11 +308,11 @@ class DQN(Agent):
                     y_k = q_learning_targets(
                         returns[s], discounts[s], next_target[s], self.q(next_obs[s])
                     ).unsqueeze(1)
-            q_all, inputs = mlp_forward(chain, self.q.act, obs_k)
+            q_all = passes.forward(obs_k)
             q = torch.gather(q_all, 1, a_k, out=q_k)
             td = torch.sub(y_k, q, out=td_k)
-            psi = torch.clamp(td, -1.0, 1.0) if cfg.loss == "huber" else td
-            mlp_backward(chain, self.q.act, inputs, onehot_k * psi)
+            psi = torch.clamp(td, -1.0, 1.0, out=psi_buf) if huber else td
+            passes.backward(torch.mul(onehot_k, psi, out=grad_out))
             flat.clip_grad_norm_(cfg.max_grad_norm)
             fused_adam_step(self.optimizer)
         self.n_updates += n
@@ -308,17 +331,16 @@ class DQN(Agent):
         Acrobot-v1 (a target kept for 62 rounds) that is a fraction of the draws.
         """
         if self._target_q is None:
-            self._target_q = torch.empty(self.replay.capacity, self.n_actions)
+            self._target_q = np.empty((self.replay.capacity, self.n_actions), np.float32)
         fresh = self._target_q_fresh
         stale = indices[~fresh[indices]]
         if len(stale):
             need = np.unique(stale)
-            with torch.no_grad():
-                values = self.q_target(torch.from_numpy(self.replay.next_obs[need]))
-            t_need = torch.from_numpy(need)
-            self._target_q.index_copy_(0, t_need, values)
+            self._target_q[need] = _q_values(
+                self._np_q_target, self.q_target, self.replay.next_obs[need]
+            )
             fresh[need] = True
-        return self._target_q.index_select(0, torch.from_numpy(indices))
+        return torch.from_numpy(self._target_q[indices])
 
     def _update_target(self) -> None:
         """theta_target <- tau theta + (1 - tau) theta_target (a copy when tau = 1)."""
@@ -333,7 +355,8 @@ class DQN(Agent):
     def _state_tensors(self, training_state: bool) -> dict[str, Any]:
         state: dict[str, Any] = {"q": self.q.state_dict(), "q_target": self.q_target.state_dict()}
         if training_state:
-            state["optimizer"] = self.optimizer.state_dict()
+            opt = self.optimizer.state_dict()
+            state["optimizer"] = self._flat.state_for_checkpoint(opt) if self._flat else opt
             state["replay"] = self.replay.state_dict()
             state["counters"] = {"since_target": self._since_target}
         return state
@@ -344,7 +367,7 @@ class DQN(Agent):
         self.q_target.load_state_dict(tensors["q_target"])
         if "optimizer" in tensors:
             state = tensors["optimizer"]
-            if self._flat is not None:  # a checkpoint from before the flat parameters
+            if self._flat is not None:  # per parameter (older checkpoints) or concatenated
                 state = self._flat.state_from_per_parameter(state)
             self.optimizer.load_state_dict(state)
         if "replay" in tensors:

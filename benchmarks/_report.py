@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import platform
 import re
 from datetime import date
@@ -24,6 +25,23 @@ def machine() -> str:
     return (
         f"{platform.machine()}, Python {platform.python_version()}, "
         f"NumPy {np.__version__}, {date.today()}"
+    )
+
+
+def load_note(start: float, end: float) -> str:
+    """A sentence on the machine's load (1-minute load averages) while a benchmark ran.
+
+    At most one running job per core (the benchmark itself being one) is called quiet;
+    above that the absolute figures are those of a loaded machine, and only ratios of
+    runs made under the same load compare.
+    """
+    cores = os.cpu_count() or 1
+    head = f"load average {start:.1f} at the start and {end:.1f} at the end on {cores} cores"
+    if max(start, end) <= cores:
+        return f"The machine was quiet: {head} (the benchmark itself is one of the jobs)."
+    return (
+        f"The machine was shared with other jobs: {head}, so the absolute figures are from "
+        "a loaded machine (the ratios compare runs under the same load)."
     )
 
 

@@ -673,18 +673,13 @@ def main() -> None:
             )
         )
     load1 = os.getloadavg()
-    notes += (
-        f" The machine was shared with other developers' jobs: load average {load0[0]:.1f} "
-        f"at the start and {load1[0]:.1f} at the end on 2 cores, so the absolute figures "
-        "are from a loaded machine (the ratios compare runs under the same load); whole "
-        f"benchmark {time.perf_counter() - t0:.0f} s."
-    )
+    from _report import load_note, write_section
+
+    notes += f" {load_note(load0[0], load1[0])} Whole benchmark {time.perf_counter() - t0:.0f} s."
     print(body + "\n\n" + notes)
     if args.section:
         command += f' --section "{args.section}"'
     if not args.no_write:
-        from _report import write_section
-
         write_section(section, command, body + "\n\n" + notes)
 
 

@@ -33,7 +33,7 @@ from policylab.games import CONNECT_FOUR, UCT, ConnectFourSolver
 from policylab.games.connect_four import ConnectFourState
 
 sys.path.insert(0, os.path.dirname(__file__))
-from _report import write_section
+from _report import load_note, write_section
 
 POSITIONS = {30: 10, 20: 10, 10: 6}
 C_UCT = 1.4
@@ -155,11 +155,13 @@ def main() -> None:
         uct_rows(5000)
         return
     load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    loads = [os.getloadavg()[0]]
     print("Connect Four solver:", flush=True)
     rows = solver_rows()
     sims = 5000
     mcts_rows = uct_rows(sims)
     load_after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    loads.append(os.getloadavg()[0])
     body = (
         "Exact Connect Four solver (Pascal Pons' score convention), positions from sensible "
         "random play (no move wins or loses at once; the player to move cannot win at once), "
@@ -177,9 +179,9 @@ def main() -> None:
         "| policylab sims/wall s | OpenSpiel sims/wall s |\n"
         "|---|---:|---:|---:|---:|---:|\n"
         + "\n".join(mcts_rows)
-        + f"\n\nLoad (`uptime`) before: `{load}`; after: `{load_after}`. The machine (2 cores) "
-        "was shared with other developers' jobs while this ran, so absolute times are "
-        "pessimistic; the two libraries in one table ran side by side under the same load."
+        + f"\n\nLoad (`uptime`) before: `{load}`; after: `{load_after}`. "
+        + load_note(*loads)
+        + " The two libraries in one table ran side by side."
     )
     write_section("Board games (Connect Four)", "python benchmarks/bench_games.py", body)
     print(body)

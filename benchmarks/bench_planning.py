@@ -754,7 +754,7 @@ def main() -> int:
         return 0
     LIMIT = args.limit
     os.environ["BENCH_PLANNING_LIMIT"] = str(LIMIT)
-    from _report import write_section
+    from _report import load_note, write_section
 
     load_before = os.getloadavg()
     sections, summary = [], []
@@ -805,7 +805,7 @@ def main() -> int:
     load = (
         f"Load average (1, 5, 15 min) at the start: {load_before[0]:.1f}, {load_before[1]:.1f}, "
         f"{load_before[2]:.1f}; at the end: {load_after[0]:.1f}, {load_after[1]:.1f}, "
-        f"{load_after[2]:.1f} (2 cores shared with other developers' jobs)."
+        f"{load_after[2]:.1f}. {load_note(load_before[0], load_after[0])}"
     )
     body = "\n".join(head) + "\n\n" + load + "\n\n" + "\n\n".join(sections) + "\n\n" + NOTES
     cmd = "python benchmarks/bench_planning.py" + " ".join(

@@ -531,7 +531,15 @@ def main() -> None:
         "--seeds",
         type=int,
         default=5,
-        help="time to solve: seeds per library, algorithm and env (0 .. SEEDS-1; default 5)",
+        help="time to solve: seeds per library, algorithm and env (FIRST .. FIRST+SEEDS-1, "
+        "FIRST from --first-seed; default 5)",
+    )
+    ap.add_argument(
+        "--first-seed",
+        type=int,
+        default=0,
+        help="time to solve: the first seed (default 0), so that seeds can be split across "
+        "processes, e.g. one per core, each with --no-write",
     )
     ap.add_argument(
         "--envs",
@@ -626,6 +634,7 @@ def main() -> None:
         command = (
             f"python benchmarks/bench_deep.py --seeds {args.seeds} --envs {args.envs} "
             f"--algos {args.algos}"
+            + (f" --first-seed {args.first_seed}" if args.first_seed else "")
             + (" --full-budget" if args.full_budget else "")
             + (" --with-zoo-policylab" if args.with_zoo_policylab else "")
         )
@@ -634,7 +643,7 @@ def main() -> None:
             for algo in algos:
                 if not zoo_settings(algo, env_id):
                     continue
-                for seed in range(args.seeds):
+                for seed in range(args.first_seed, args.first_seed + args.seeds):
                     variants = [True, False] if args.with_zoo_policylab else [True]
                     runs: list[Callable[[], Result]] = [
                         partial(run_policylab, algo, env_id, seed, args.full_budget, tuned)
@@ -653,7 +662,8 @@ def main() -> None:
         body = table(results, args.full_budget)
         evals = ", ".join(f"{k} every {v:,}" for k, v in EVAL_EVERY.items())
         notes = (
-            f"Seeds 0-{args.seeds - 1}, each library with its recommended settings "
+            f"Seeds {args.first_seed}-{args.first_seed + args.seeds - 1}, each library with "
+            "its recommended settings "
             "(policylab: `policylab train`'s defaults, `pl.deep.default_config`, the zoo "
             "settings plus `policylab.deep.zoo.TUNED`, which changes nothing for PPO; SB3: "
             "the zoo settings). Times are of training only, in CPU seconds of the process "

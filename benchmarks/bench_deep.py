@@ -27,7 +27,9 @@ Usage: ``python benchmarks/bench_deep.py [--per-step] [--rounds 3] [--seeds 5]
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
+import json
 import os
 import statistics
 import time
@@ -181,6 +183,26 @@ def run_sb3(algo: str, env_id: str, seed: int, full_budget: bool = True) -> Resu
     )
     venv.close()
     return res
+
+
+def save_result(path: str, r: Result) -> None:
+    """Append one run to ``path`` as a JSON line (flushed, so a killed run keeps the others)."""
+    with open(path, "a", encoding="utf-8") as fh:
+        fh.write(json.dumps(dataclasses.asdict(r)) + "\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def load_results(path: str) -> list[Result]:
+    """The runs saved by :func:`save_result`, in order."""
+    out = []
+    with open(path, encoding="utf-8") as fh:
+        for line in fh:
+            if line.strip():
+                d = json.loads(line)
+                d["evals"] = [tuple(e) for e in d["evals"]]
+                out.append(Result(**d))
+    return out
 
 
 def _fmt(xs: list[float], digits: int = 1) -> str:
@@ -583,6 +605,21 @@ def main() -> None:
         help="print the steps per CPU-second the matrix products alone would allow, and stop",
     )
     ap.add_argument(
+        "--results",
+        default=None,
+        metavar="FILE",
+        help="time to solve: also append each run to FILE as a JSON line, so that runs "
+        "split across processes can be put in one table with --from-results",
+    )
+    ap.add_argument(
+        "--from-results",
+        default=None,
+        metavar="FILES",
+        help="time to solve: run nothing; build the table (and its section, unless "
+        "--no-write) from comma-separated files written by --results. --seeds, "
+        "--first-seed, --envs and --algos then only describe the runs in the notes",
+    )
+    ap.add_argument(
         "--full-budget",
         action="store_true",
         help="train both libraries to their whole budgets instead of stopping once solved",
@@ -639,6 +676,9 @@ def main() -> None:
             + (" --with-zoo-policylab" if args.with_zoo_policylab else "")
         )
         results: list[Result] = []
+        if args.from_results:
+            results = [r for f in args.from_results.split(",") for r in load_results(f)]
+            envs = []  # nothing to run
         for env_id in envs:
             for algo in algos:
                 if not zoo_settings(algo, env_id):
@@ -653,10 +693,13 @@ def main() -> None:
                     for runner in runs:
                         r = runner()
                         results.append(r)
+                        if args.results:
+                            save_result(args.results, r)
                         print(
                             f"{r.library:10s} {algo} {env_id} seed {seed}: "
                             f"train {r.train_seconds:.1f}s solved at {r.solve_steps} "
-                            f"({r.solve_seconds}) final {r.final_mean:.1f} evals {r.evals}",
+                            f"({r.solve_seconds} s wall, {r.solve_cpu_seconds} s CPU) "
+                            f"final {r.final_mean:.1f} evals {r.evals}",
                             flush=True,
                         )
         body = table(results, args.full_budget)
@@ -685,7 +728,13 @@ def main() -> None:
     load1 = os.getloadavg()
     from _report import load_note, write_section
 
-    notes += f" {load_note(load0[0], load1[0])} Whole benchmark {time.perf_counter() - t0:.0f} s."
+    if getattr(args, "from_results", None):
+        notes += f" Built from saved runs ({args.from_results}); the runs' load is in their logs."
+        command += f" --from-results {args.from_results}"
+    else:
+        notes += (
+            f" {load_note(load0[0], load1[0])} Whole benchmark {time.perf_counter() - t0:.0f} s."
+        )
     print(body + "\n\n" + notes)
     if args.section:
         command += f' --section "{args.section}"'

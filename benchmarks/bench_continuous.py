@@ -373,6 +373,26 @@ class _SB3Predictor:
         return self.model.predict(obs, deterministic=deterministic)[0]  # type: ignore[attr-defined]
 
 
+def _commit() -> str:
+    """The checkout's commit (short hash, '+' if it has uncommitted changes), or '?'."""
+    import subprocess
+
+    root = Path(__file__).resolve().parent.parent
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+        ).stdout.strip()
+    except OSError:
+        return "?"
+    return (head or "?") + ("+" if dirty else "")
+
+
 def quality(args: argparse.Namespace) -> None:
     """Train with the zoo's settings for ``args.quality``, then evaluate the greedy policy."""
     import torch
@@ -410,6 +430,8 @@ def quality(args: argparse.Namespace) -> None:
                         f.write(json.dumps(dict(
                             env=env_id, algo=algo, lib=lib, seed=seed, steps=steps,
                             episodes=episodes, mean_return=ret, seconds=sec,
+                            commit=_commit(),
+                            finished=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
                         )) + "\n")  # fmt: skip
                 zoo = f"{published[algo]:.0f}" if algo in published else ""
                 rows.append(f"| {algo.upper()} | {lib} | {seed} | {ret:.1f} | {zoo} | {sec:.0f} |")

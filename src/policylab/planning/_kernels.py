@@ -541,46 +541,40 @@ def _policy_matvec_par(
 # On the 200 x 200 grid this took the sweep from 1.6x to 1.2x a bare CSR product.
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _optimality_value(
+    indptr: Any, nxt: Any, probs: Any, Rm: Any, terminal: Any, gamma: float, v: Any, s: Any
+) -> float:  # pragma: no cover - compiled
+    # (T v)(s) = max_a Rm[s, a] + gamma sum_s' p(s' | s, a) v(s'); 0 at a terminal s.
+    A = Rm.shape[0] // terminal.shape[0]
+    best = -np.inf
+    hi = np.uint64(indptr[s * A])
+    for a in range(A):
+        row = s * A + a
+        k = hi
+        hi = np.uint64(indptr[row + 1])
+        acc = 0.0
+        while k < hi:
+            acc += probs[k] * v[np.uint64(nxt[k])]
+            k += np.uint64(1)
+        best = max(best, Rm[row] + gamma * acc)
+    return 0.0 if terminal[s] else best
+
+
 @njit(cache=True, nogil=True)
 def _optimality_values(
     indptr: Any, nxt: Any, probs: Any, Rm: Any, terminal: Any, gamma: float, v: Any, out: Any
 ) -> None:  # pragma: no cover - compiled
-    S = terminal.shape[0]
-    A = Rm.shape[0] // S
-    for s in range(S):
-        best = -np.inf
-        hi = np.uint64(indptr[s * A])
-        for a in range(A):
-            row = s * A + a
-            k = hi
-            hi = np.uint64(indptr[row + 1])
-            acc = 0.0
-            while k < hi:
-                acc += probs[k] * v[np.uint64(nxt[k])]
-                k += np.uint64(1)
-            best = max(best, Rm[row] + gamma * acc)
-        out[s] = 0.0 if terminal[s] else best
+    for s in range(terminal.shape[0]):
+        out[s] = _optimality_value(indptr, nxt, probs, Rm, terminal, gamma, v, s)
 
 
 @njit(cache=True, nogil=True, parallel=True)
 def _optimality_values_par(
     indptr: Any, nxt: Any, probs: Any, Rm: Any, terminal: Any, gamma: float, v: Any, out: Any
 ) -> None:  # pragma: no cover - compiled
-    S = terminal.shape[0]
-    A = Rm.shape[0] // S
-    for s in prange(S):
-        best = -np.inf
-        hi = np.uint64(indptr[s * A])
-        for a in range(A):
-            row = s * A + a
-            k = hi
-            hi = np.uint64(indptr[row + 1])
-            acc = 0.0
-            while k < hi:
-                acc += probs[k] * v[np.uint64(nxt[k])]
-                k += np.uint64(1)
-            best = max(best, Rm[row] + gamma * acc)
-        out[s] = 0.0 if terminal[s] else best
+    for s in prange(terminal.shape[0]):
+        out[s] = _optimality_value(indptr, nxt, probs, Rm, terminal, gamma, v, s)
 
 
 def _parallel(n_reads: int) -> bool:

@@ -67,40 +67,37 @@ __all__ = [
 DENSE_EVAL_MAX_STATES = 3000
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _backup_state(
+    post: Any, R: Any, gamma: float, w: Any, out: Any, act: Any, s: Any
+) -> None:  # pragma: no cover
+    # out[s] = max_a R[s, a] + gamma w[post[s, a]], act[s] the first argmax (R is -inf
+    # on unavailable actions, whose post entry is 0).
+    best = -np.inf
+    best_a = 0
+    for a in range(post.shape[1]):
+        q = R[s, a] + gamma * w[post[s, a]]
+        if q > best:
+            best = q
+            best_a = a
+    out[s] = best
+    act[s] = best_a
+
+
 @njit(cache=True, nogil=True)
 def _backup(
     post: Any, R: Any, gamma: float, w: Any, out: Any, act: Any
 ) -> None:  # pragma: no cover
-    # out[s] = max_a R[s, a] + gamma w[post[s, a]], act[s] the first argmax (R is -inf
-    # on unavailable actions, whose post entry is 0).
-    S, A = post.shape
-    for s in range(S):
-        best = -np.inf
-        best_a = 0
-        for a in range(A):
-            q = R[s, a] + gamma * w[post[s, a]]
-            if q > best:
-                best = q
-                best_a = a
-        out[s] = best
-        act[s] = best_a
+    for s in range(post.shape[0]):
+        _backup_state(post, R, gamma, w, out, act, s)
 
 
 @njit(cache=True, nogil=True, parallel=True)
 def _backup_par(
     post: Any, R: Any, gamma: float, w: Any, out: Any, act: Any
 ) -> None:  # pragma: no cover
-    S, A = post.shape
-    for s in prange(S):
-        best = -np.inf
-        best_a = 0
-        for a in range(A):
-            q = R[s, a] + gamma * w[post[s, a]]
-            if q > best:
-                best = q
-                best_a = a
-        out[s] = best
-        act[s] = best_a
+    for s in prange(post.shape[0]):
+        _backup_state(post, R, gamma, w, out, act, s)
 
 
 def _masked(model: PostDecisionMDP) -> NDArray[np.float64]:

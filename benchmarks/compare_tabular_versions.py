@@ -1,4 +1,4 @@
-"""Q-learning and Sarsa steps per second on FrozenLake 8x8 for one checkout of policylab.
+"""Q-learning, Sarsa and Monte Carlo steps per second for one checkout of policylab.
 
 Run it once per version to compare two versions in turn on the same machine, e.g. an
 older commit unpacked with ``git worktree add --detach /tmp/before COMMIT``::
@@ -10,7 +10,10 @@ older commit unpacked with ``git worktree add --detach /tmp/before COMMIT``::
 It prints the raw kernel (that checkout's ``benchmarks/bench_td.py``), the public API
 (best of 3 runs of 200,000 episodes) and ``policylab learn ... FrozenLake8x8-v1
 --episodes 1010000 --json`` (gamma 1) in steps per second; the ``learn`` step counts
-show whether both versions compute the same runs.
+show whether both versions compute the same runs. Then Monte Carlo control through the
+public API (best of 3, CPU time of the thread): FrozenLake 8x8 epsilon-greedy (epsilon
+0.1, 200,000 episodes) and blackjack with exploring starts (500,000 episodes), with the
+sum of the learned Q as a checksum of the runs.
 """
 
 from __future__ import annotations
@@ -61,5 +64,29 @@ def main() -> None:
               f"({d['steps']} steps, {d['seconds']:.2f} s)")  # fmt: skip
 
 
+def monte_carlo(lake: pl.FiniteMDP) -> None:
+    """One line per Monte Carlo control run: steps per CPU-second and a checksum of Q."""
+    runs = (
+        ("FrozenLake 8x8, epsilon 0.1", dict(problem=lake, episodes=200_000, epsilon=0.1)),
+        ("blackjack, exploring starts",
+         dict(problem=pl.problems.blackjack(), episodes=500_000, exploring_starts=True)),
+    )  # fmt: skip
+    for name, kw in runs:
+        tabular.mc_control(**{**kw, "episodes": 50})
+        best, r = float("inf"), None
+        for _ in range(3):
+            t0 = time.thread_time()
+            r = tabular.mc_control(**kw, seed=0, score=False)  # type: ignore[arg-type]
+            best = min(best, time.thread_time() - t0)
+        assert r is not None
+        print(f"mc-control, {name}: {r.steps / best / 1e6:.2f}M steps per CPU-second "
+              f"({r.steps} steps, {best:.3f} s; sum of Q {float(r.q.sum()):.10g})")  # fmt: skip
+
+
 if __name__ == "__main__":
     main()
+    monte_carlo(
+        pl.FiniteMDP.from_gymnasium(
+            gym.make("FrozenLake-v1", map_name="8x8"), gamma=0.99, name="FrozenLake8x8"
+        )
+    )

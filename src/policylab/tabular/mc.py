@@ -64,6 +64,7 @@ from policylab.tabular.kernels import (
     Model,
     behaviour_epsilon,
     choose_action,
+    episode_loop,
     exploring_start_state,
     generate_episode,
     writable,
@@ -117,7 +118,7 @@ class _MCRun(NamedTuple):
     lengths: Any
 
 
-@nb.njit(cache=True, nogil=True)
+@episode_loop
 def _mc_chunk(
     model: Model,
     behaviour: Behaviour,

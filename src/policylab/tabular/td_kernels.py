@@ -35,8 +35,7 @@ sample average), exploration rates at n = the episode number.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -46,6 +45,7 @@ from policylab.tabular.kernels import (
     Model,
     env_reset,
     env_step,
+    episode_loop,
     epsilon_greedy_at,
     rand_below,
     sample_action,
@@ -63,7 +63,7 @@ from policylab.tabular.rules.td import (
 from policylab.tabular.schedules import schedule_value
 
 if TYPE_CHECKING:
-    from numba.core.dispatcher import Dispatcher
+    pass
 
 __all__ = [
     "DOUBLE_Q",
@@ -99,25 +99,6 @@ __all__ = [
     "td_target",
     "td_update",
 ]
-
-_F = TypeVar("_F", bound=Callable[..., object])
-
-
-def episode_loop(fn: _F) -> Dispatcher[_F]:
-    """Compile an episode loop: ``njit(cache=True, nogil=True)`` without reference counting.
-
-    numba counts the references to every array a compiled function holds; each
-    array a loop hands to an inlined helper (``epsilon_greedy_at``, ``sample_next``, the
-    RNG draws) then costs an atomic increment and decrement of its count at every step,
-    which numba cannot prune across the helpers' branches: they were more than half the
-    time of a Q-learning step. Compiled without them (numba's ``_nrt=False``), a loop
-    allocates nothing (its working memory comes in :class:`Tables`) and only borrows
-    the arrays its caller keeps alive.
-    """
-    no_reference_counting: dict[str, Any] = {"_nrt": False}  # not in numba's stubs
-    loop: Dispatcher[_F] = njit(fn, cache=True, nogil=True, **no_reference_counting)
-    return loop
-
 
 #: Rules of :func:`one_step_control_kernel`.
 SARSA, Q_LEARNING, EXPECTED_SARSA, DOUBLE_Q = 0, 1, 2, 3

@@ -10,8 +10,6 @@ from torch import nn
 from policylab.deep.common.mlp_grad import (
     ChainPasses,
     FlatParameters,
-    mlp_backward,
-    mlp_forward,
     mlp_layers,
 )
 from policylab.deep.common.networks import MLP, build_torso
@@ -25,7 +23,8 @@ from policylab.exceptions import InvalidArgumentError
 
 
 @pytest.mark.parametrize("act", ["tanh", "relu", "elu"])
-def test_mlp_backward_equals_autograd(act: str) -> None:
+def test_chain_passes_on_the_layers_own_tensors_equal_autograd(act: str) -> None:
+    # parameters not laid out as blocks: each forward copies them, each backward writes .grad
     g = torch.Generator().manual_seed(0)
     net = nn.Sequential(
         build_torso(gym.spaces.Box(-1, 1, (3, 2)), (7, 5), act, g), MLP(5, (), 4, generator=g)
@@ -37,10 +36,16 @@ def test_mlp_backward_equals_autograd(act: str) -> None:
     loss = (torch.sin(net(x)) * w).sum()  # any loss of the output
     loss.backward()  # type: ignore[no-untyped-call]
     expected = [p.grad.clone() for p in net.parameters()]  # type: ignore[union-attr]
-    out, inputs = mlp_forward(chain, act, x)
+    passes = ChainPasses(chain, act)
+    out = passes.forward(passes.with_ones(x))
     torch.testing.assert_close(out, net(x).detach(), rtol=0, atol=1e-12)
     net.zero_grad(set_to_none=True)
-    mlp_backward(chain, act, inputs, torch.cos(out) * w)
+    passes.backward(torch.cos(out) * w)
+    for p, e in zip(net.parameters(), expected, strict=True):
+        torch.testing.assert_close(p.grad, e, rtol=0, atol=1e-12)
+    # a gradient already there is overwritten, not added to; only the first rows count
+    passes.forward(passes.with_ones(torch.cat([x, x.flip(0)])))
+    passes.backward(torch.cos(out) * w, rows=len(x))
     for p, e in zip(net.parameters(), expected, strict=True):
         torch.testing.assert_close(p.grad, e, rtol=0, atol=1e-12)
 
@@ -185,7 +190,7 @@ def test_fused_adam_step_and_flat_clip_equal_the_optimizer_bit_for_bit() -> None
 
 
 @pytest.mark.parametrize("act", ["tanh", "relu", "elu"])
-def test_numpy_forward_equals_mlp_forward_and_follows_the_parameters(act: str) -> None:
+def test_numpy_forward_equals_chain_passes_and_follows_the_parameters(act: str) -> None:
     import numpy as np
 
     from policylab.deep.common.mlp_grad import NumpyMLP
@@ -194,29 +199,34 @@ def test_numpy_forward_equals_mlp_forward_and_follows_the_parameters(act: str) -
     net = nn.Sequential(build_torso(gym.spaces.Box(-1, 1, (3,)), (16, 8), act, g), nn.Linear(8, 3))
     chain = mlp_layers(net)
     assert chain is not None
-    fwd = NumpyMLP(chain, act)
+    fwd, passes = NumpyMLP(chain, act), ChainPasses(chain, act)
     x = torch.randn(5, 3, generator=g)
     torch.testing.assert_close(
-        torch.from_numpy(fwd(x.numpy())), mlp_forward(chain, act, x)[0], rtol=1e-6, atol=1e-6
+        torch.from_numpy(fwd(x.numpy())),
+        passes.forward(passes.with_ones(x), keep=False),
+        rtol=1e-6,
+        atol=1e-6,
     )
     with torch.no_grad():  # an in-place update (an optimizer step) is seen
         chain[1].weight.mul_(-2.0)
     flat = FlatParameters(list(net.parameters()))  # and so is memory that moved
     with torch.no_grad():
         flat.flat.add_(0.1)
-    expected = mlp_forward(chain, act, x)[0]
+    expected = passes.forward(passes.with_ones(x), keep=False)
     torch.testing.assert_close(torch.from_numpy(fwd(x.numpy())), expected, rtol=1e-6, atol=1e-6)
     assert fwd(np.zeros((0, 3), np.float32)).shape == (0, 3)
 
 
 def test_narrow_output_layer_equals_the_plain_product() -> None:
-    # a 2-4 output layer on a batch is computed as (W h^T + b)^T: the same numbers
+    # a 2-4 output layer on batches of any size, on blocks: the same numbers
     g = torch.Generator().manual_seed(2)
     net = nn.Sequential(nn.Linear(6, 32), nn.ReLU(), nn.Linear(32, 3))
     chain = mlp_layers(net)
     assert chain is not None
+    FlatParameters.of_chain(chain)
+    passes = ChainPasses(chain, "relu")
     for batch in (1, 31, 32, 200):
         x = torch.randn(batch, 6, generator=g)
-        out = mlp_forward(chain, "relu", x)[0]
+        out = passes.forward(passes.with_ones(x), keep=False)
         assert out.is_contiguous() and out.shape == (batch, 3)
         torch.testing.assert_close(out, net(x).detach(), rtol=1e-6, atol=1e-6)

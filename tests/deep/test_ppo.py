@@ -196,10 +196,9 @@ def test_checkpoint_with_per_parameter_optimizer_state_still_loads(tmp_path: Pat
     params = list(agent.net.parameters())
     sizes = [p.numel() for p in params]
 
-    def own(p: torch.Tensor, key: str) -> torch.Tensor:  # p's slice of a flat moment
+    def own(p: torch.Tensor, key: str) -> torch.Tensor:  # p's view of a flat moment
         k = next(i for i, q in enumerate(buf.params) if q is p)
-        start = buf.offsets[k]
-        return flat["state"][0][key][start : start + p.numel()].view_as(p)
+        return buf.view(flat["state"][0][key], k)
 
     split = [{k: own(p, k) for k in ("exp_avg", "exp_avg_sq")} for p in params]
     old = {

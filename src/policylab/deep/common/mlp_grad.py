@@ -16,8 +16,13 @@ kernel differs: tanh is NumPy's, applied in place to the tensor's memory, becaus
 torch's CPU tanh costs about 20 times as much on a (256, 64) batch on the AVX-512
 machine of the benchmarks (73 us against 3.3 us); both are accurate to a few units in
 the last place, so results agree with the autograd path to float rounding.
-:func:`mlp_layers` finds such a chain in a module; networks it does not recognise
-(convolutions, one-hot inputs) keep autograd.
+
+:class:`ChainPasses` is the one implementation of these passes, used by every learner
+(DQN's Q-network, PPO's actor and critic, the SAC and TD3 actors); it runs each layer as
+one product on its parameters held as a [W^T; b] block (:class:`FlatParameters` with
+``chain``). :func:`mlp_layers` finds such a chain in a module; networks it does not
+recognise (convolutions, one-hot inputs) keep autograd. :class:`NumpyMLP` is the forward
+pass in NumPy, for acting on a few observations.
 """
 
 from __future__ import annotations
@@ -39,8 +44,6 @@ __all__ = [
     "NumpyMLP",
     "activation_backward",
     "fused_adam_step",
-    "mlp_backward",
-    "mlp_forward",
     "mlp_layers",
 ]
 
@@ -121,43 +124,10 @@ def activation_backward(
     return aten.elu_backward.grad_input(grad, 1.0, 1.0, 1.0, True, h, grad_input=out)  # type: ignore[no-any-return]
 
 
-def mlp_forward(
-    layers: Sequence[nn.Linear], act: str, x: torch.Tensor
-) -> tuple[torch.Tensor, list[torch.Tensor]]:
-    """The MLP's output and every layer's input (what :func:`mlp_backward` needs).
-
-    Runs without building an autograd graph. Returns ``(out, inputs)`` with
-    ``inputs[l]`` the input h_{l} of layer l (``inputs[0]`` is ``x`` flattened).
-    """
-    with torch.no_grad():
-        h = x.reshape(len(x), -1)
-        inputs = []
-        last = len(layers) - 1
-        for i, layer in enumerate(layers):
-            inputs.append(h)
-            h = _affine(h, layer.weight, layer.bias)
-            if i < last:
-                h = _activation(h, act)
-    return h, inputs
-
-
-def _affine(h: torch.Tensor, w: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """The affine map z = h W^T + b, in the orientation BLAS runs fastest.
-
-    A layer with a few outputs (a Q-head over 2-4 actions, a policy head) on a batch
-    runs about twice as fast as (W h^T + b)^T than as h W^T + b (a (128, 256) batch
-    into 3 outputs: 6.5 us against 14 us; 5,000 rows: 190 us against 390 us); the
-    result is made contiguous again.
-    """
-    if 1 < w.shape[0] <= 4 and len(h) >= 32:
-        return torch.addmm(b.unsqueeze(1), w, h.t()).t().contiguous()
-    return torch.addmm(b, h, w.t())
-
-
 class NumpyMLP:
     """An MLP's forward pass in NumPy, for acting on a few observations at a time.
 
-    The same equations as :func:`mlp_forward` (h_l = act(h_{l-1} W_l^T + b_l), no act
+    The same equations as :class:`ChainPasses` (h_l = act(h_{l-1} W_l^T + b_l), no act
     on the last layer), on NumPy views of the parameters' memory, so every optimizer
     step is seen without a copy. For one to a few dozen observations the arithmetic
     takes a few microseconds and torch's per-operation dispatch costs more than it
@@ -203,19 +173,6 @@ class NumpyMLP:
         return h
 
 
-def _weight_grad(g: torch.Tensor, h: torch.Tensor, out: torch.Tensor) -> None:
-    """Write dW = g^T h into ``out``, in the orientation BLAS runs fastest.
-
-    A product with few rows and many columns runs several times faster than its
-    transpose for these shapes (a (64, 4) first-layer gradient: 28 us as g^T h, 4 us
-    as (h^T g)^T), so the narrow side goes first.
-    """
-    if h.shape[1] < g.shape[1]:
-        out.copy_(torch.mm(h.t(), g).t())
-    else:
-        torch.mm(g.t(), h, out=out)
-
-
 def _block_grad(h: torch.Tensor, g: torch.Tensor, out: torch.Tensor) -> None:
     """Write [dW^T; db] = [h, 1]^T dz into ``out``, the narrow orientation first.
 
@@ -229,36 +186,6 @@ def _block_grad(h: torch.Tensor, g: torch.Tensor, out: torch.Tensor) -> None:
         torch.mm(h.t(), g, out=out)
 
 
-def mlp_backward(
-    layers: Sequence[nn.Linear], act: str, inputs: Sequence[torch.Tensor], grad_out: torch.Tensor
-) -> None:
-    """Set the ``.grad`` of every weight and bias of the MLP to dL/dtheta.
-
-    A parameter that already has a ``.grad`` gets it overwritten in place (so gradients
-    can live in one flat buffer, see :class:`FlatParameters`); one without gets a new
-    tensor.
-
-    Args:
-        layers: The MLP's Linear layers, as :func:`mlp_layers` gives them.
-        act: Activation name.
-        inputs: Every layer's input, from :func:`mlp_forward`.
-        grad_out: (B, out) dL/d(output).
-    """
-    with torch.no_grad():
-        g = grad_out
-        for i in range(len(layers) - 1, -1, -1):
-            layer, h = layers[i], inputs[i]
-            w, b = layer.weight, layer.bias
-            if b.grad is None:
-                b.grad = torch.empty_like(b)
-            if w.grad is None:
-                w.grad = torch.empty_like(w)
-            torch.sum(g, 0, out=b.grad)
-            _weight_grad(g, h, w.grad)
-            if i > 0:
-                g = activation_backward(torch.mm(g, w), h, act)
-
-
 class FlatParameters:
     """The parameters of a network as views of one flat tensor, and their gradients too.
 
@@ -269,19 +196,21 @@ class FlatParameters:
     (the same objects, names and shapes in ``state_dict``); only their storage moves.
 
     By default the buffer holds the parameters one after the other. With ``chain``
-    (the Linear layers of a plain MLP, whose weights and biases ``params`` lists in
-    order) it holds each layer as one (in + 1, out) block [W^T; b]: the weight is a
+    (Linear layers whose weight and bias ``params`` lists one right after the other:
+    the layers of one or several plain MLPs) it holds each of those layers as one
+    (in + 1, out) block [W^T; b] in the place of its weight and bias: the weight is a
     transposed view of the block's first rows and the bias its last row, so that
     :class:`ChainPasses` computes z = [h, 1] [W^T; b] and the weight and bias
-    gradients [h, 1]^T dz each in one matrix product.
+    gradients [h, 1]^T dz each in one matrix product. Other parameters (a log std)
+    keep the default layout.
 
     Args:
         params: The parameters; each must be a leaf tensor of float dtype.
-        chain: The Linear layers behind ``params``, for the block layout.
+        chain: The Linear layers to hold as [W^T; b] blocks.
 
     Raises:
-        InvalidArgumentError: If ``chain`` is given and ``params`` are not its layers'
-            weights and biases in order.
+        InvalidArgumentError: If a layer of ``chain`` does not have its weight and then
+            its bias among ``params``.
     """
 
     def __init__(
@@ -289,20 +218,24 @@ class FlatParameters:
     ) -> None:
         self.params = list(params)
         self.chain = list(chain) if chain is not None else None
-        if self.chain is not None:
-            expected = [p for layer in self.chain for p in (layer.weight, layer.bias)]
-            if len(expected) != len(self.params) or any(
-                a is not b for a, b in zip(expected, self.params, strict=False)
-            ):
-                raise InvalidArgumentError(
-                    "FlatParameters: params must be the chain's weights and biases, in order"
-                )
-        sizes = [p.numel() for p in self.params]
         self.offsets: list[int] = []  # where each parameter starts in the concatenation
         offset = 0
-        for n in sizes:
+        for p in self.params:
             self.offsets.append(offset)
-            offset += n
+            offset += p.numel()
+        index = {id(p): i for i, p in enumerate(self.params)}
+        self._layer_of: dict[int, int] = {}  # parameter index -> its layer in chain
+        self._block_start: list[int] = []  # per layer: where its block starts
+        for j, layer in enumerate(self.chain or ()):
+            i = index.get(id(layer.weight), -1)
+            if i < 0 or i + 1 == len(self.params) or self.params[i + 1] is not layer.bias:
+                raise InvalidArgumentError(
+                    "FlatParameters: params must hold each of the chain's weights and biases, "
+                    f"the bias right after its weight (layer {j} of the chain)"
+                )
+            self._layer_of[i] = self._layer_of[i + 1] = j
+            # the block takes the place of the weight and the bias: (in + 1) out elements
+            self._block_start.append(self.offsets[i])
         data = self.from_parameters([p.detach() for p in self.params])
         self.flat = nn.Parameter(data)
         self.flat.grad = torch.zeros_like(data)
@@ -310,23 +243,30 @@ class FlatParameters:
             p.data = self.view(data, i)
             p.grad = self.view(self.flat.grad, i)
 
-    def blocks(self, v: torch.Tensor) -> list[torch.Tensor]:
-        """The (in + 1, out) blocks [W^T; b] of each layer in a flat tensor ``v``."""
+    @classmethod
+    def of_chain(cls, chain: Sequence[nn.Linear]) -> FlatParameters:
+        """The weights and biases of a plain MLP's Linear layers, each layer as one block."""
+        return cls([p for layer in chain for p in (layer.weight, layer.bias)], chain)
+
+    def _block(self, v: torch.Tensor, j: int) -> torch.Tensor:
+        """Layer ``j``'s (in + 1, out) block [W^T; b] in a flat tensor ``v``."""
         assert self.chain is not None
-        out, offset = [], 0
-        for layer in self.chain:
-            n_out, n_in = layer.weight.shape
-            out.append(v[offset : offset + (n_in + 1) * n_out].view(n_in + 1, n_out))
-            offset += (n_in + 1) * n_out
-        return out
+        n_out, n_in = self.chain[j].weight.shape
+        start = self._block_start[j]
+        return v[start : start + (n_in + 1) * n_out].view(n_in + 1, n_out)
+
+    def blocks(self, v: torch.Tensor) -> list[torch.Tensor]:
+        """The (in + 1, out) blocks [W^T; b] of each layer of ``chain`` in a flat tensor ``v``."""
+        return [self._block(v, j) for j in range(len(self.chain or ()))]
 
     def view(self, v: torch.Tensor, i: int) -> torch.Tensor:
         """Parameter ``i``'s view of a flat tensor ``v`` laid out as the buffer."""
         p = self.params[i]
-        if self.chain is None:
+        j = self._layer_of.get(i)
+        if j is None:
             return v[self.offsets[i] : self.offsets[i] + p.numel()].view(p.shape)
-        block = self.blocks(v)[i // 2]
-        return block[:-1].t() if i % 2 == 0 else block[-1]
+        block = self._block(v, j)
+        return block[:-1].t() if p is self.chain[j].weight else block[-1]  # type: ignore[index]
 
     def from_parameters(self, tensors: Sequence[torch.Tensor]) -> torch.Tensor:
         """A flat tensor laid out as the buffer, holding one tensor per parameter."""
@@ -426,12 +366,29 @@ class FlatParameters:
         return {"state": {0: flat_state} if flat_state else {}, "param_groups": [group]}
 
 
+def _block_of(w: torch.Tensor, b: torch.Tensor) -> torch.Tensor | None:
+    """The (in + 1, out) block [W^T; b] that ``w`` (out, in) and ``b`` (out,) are views of.
+
+    None where they are not laid out so (the layer's own tensors, or a copy of them).
+    """
+    n_out, n_in = w.shape
+    if (
+        w.stride() == (1, n_out)
+        and b.stride() == (1,)
+        and b.dtype == w.dtype
+        and b.untyped_storage().data_ptr() == w.untyped_storage().data_ptr()
+        and b.storage_offset() == w.storage_offset() + n_in * n_out
+    ):
+        return w.as_strided((n_in + 1, n_out), (n_out, 1))
+    return None
+
+
 class ChainPasses:
     """Forward and backward passes of a plain MLP held as [W^T; b] blocks, one product each.
 
-    The equations of :func:`mlp_forward` and :func:`mlp_backward`, with each layer's
-    input extended by a column of ones, h^+ = [h, 1], and its parameters stored as one
-    (in + 1, out) block [W^T; b] (:class:`FlatParameters` with ``chain``):
+    The equations of backpropagation through the MLP (see the module's docstring), with
+    each layer's input extended by a column of ones, h^+ = [h, 1], and its parameters
+    stored as one (in + 1, out) block [W^T; b] (:class:`FlatParameters` with ``chain``):
 
         forward:   z_l = h^+_{l-1} [W_l^T; b_l],   h_l = act(z_l)   (no act on the last)
         backward:  [dW_l^T; db_l] = (h^+_{l-1})^T dz_l,
@@ -443,69 +400,129 @@ class ChainPasses:
     product in the orientation the row-major blocks give. The layers' inputs live in
     buffers kept between calls (one set per batch size), so a gradient step allocates
     nothing but its output. The sums run in another order than with a separate bias,
-    so results agree with :func:`mlp_forward` to float rounding.
+    so results agree with autograd's to float rounding.
+
+    The blocks are found from the layers' parameters at each call, so the passes follow
+    parameters that move (a flat buffer made later, ``.double()``). A layer whose
+    weight and bias are not views of one block still works: its block is copied for
+    each forward pass, and its gradients copied into ``.grad`` after each backward one.
 
     Args:
-        flat: The network's parameters in the block layout (``FlatParameters(...,
-            chain=layers)``); the gradients are written into ``flat.flat.grad``.
+        layers: The MLP's Linear layers (:func:`mlp_layers`), or a
+            :class:`FlatParameters` made with ``chain=`` those layers.
         act: Activation name (tanh, relu or elu).
     """
 
-    def __init__(self, flat: FlatParameters, act: str) -> None:
-        if flat.chain is None:
-            raise InvalidArgumentError("ChainPasses needs FlatParameters made with chain=")
+    def __init__(self, layers: FlatParameters | Sequence[nn.Linear], act: str) -> None:
+        if isinstance(layers, FlatParameters):
+            if layers.chain is None:
+                raise InvalidArgumentError("ChainPasses needs FlatParameters made with chain=")
+            layers = layers.chain
         if act not in ("tanh", "relu", "elu"):
             raise InvalidArgumentError(f"activation must be tanh, relu or elu; got {act!r}")
-        assert flat.flat.grad is not None
         self.act = act
-        self.weights = flat.blocks(flat.flat.detach())
-        self.grads = flat.blocks(flat.flat.grad)
-        self._buffers: dict[int, tuple[list[torch.Tensor], list[torch.Tensor]]] = {}
+        self.layers = list(layers)
+        self._weights: tuple[list[int], list[torch.Tensor | None]] = ([], [])
+        self._grads: tuple[list[int], list[torch.Tensor | None]] = ([], [])
+        self._buffers: dict[tuple[int, torch.dtype], tuple[list[torch.Tensor], ...]] = {}
         self._last: tuple[torch.Tensor, list[torch.Tensor], list[torch.Tensor]] | None = None
+        self._last_weights: list[torch.Tensor] = []
 
-    def with_ones(self, x: torch.Tensor) -> torch.Tensor:
+    @staticmethod
+    def with_ones(x: torch.Tensor) -> torch.Tensor:
         """[x, 1]: a batch of inputs (flattened) with a column of ones appended."""
         x = x.reshape(len(x), -1)
         return torch.cat([x, torch.ones(len(x), 1, dtype=x.dtype)], dim=1)
 
-    def _layer_buffers(self, batch: int) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
-        """Per hidden layer: its output [h, 1] (ones in the last column) and dL/dz."""
-        if batch not in self._buffers:
-            widths, dtype = [w.shape[1] for w in self.weights[:-1]], self.weights[0].dtype
+    def _weight_blocks(self) -> list[torch.Tensor]:
+        """Each layer's [W^T; b]: a view of its parameters where they are laid out so."""
+        ptrs = [layer.weight.data_ptr() for layer in self.layers]
+        if ptrs != self._weights[0]:
+            views = [_block_of(layer.weight.detach(), layer.bias.detach()) for layer in self.layers]
+            self._weights = (ptrs, views)
+        return [
+            torch.cat([layer.weight.detach().t(), layer.bias.detach()[None]]) if v is None else v
+            for layer, v in zip(self.layers, self._weights[1], strict=True)
+        ]
+
+    def _grad_blocks(self) -> list[torch.Tensor | None]:
+        """Each layer's gradient block [dW^T; db] where ``.grad`` is laid out so, else None."""
+        grads = [(layer.weight.grad, layer.bias.grad) for layer in self.layers]
+        ptrs = [0 if w is None else w.data_ptr() for w, _ in grads]
+        if ptrs != self._grads[0]:
+            views = [None if w is None or b is None else _block_of(w, b) for w, b in grads]
+            self._grads = (ptrs, views)
+        return self._grads[1]
+
+    def _layer_buffers(
+        self, batch: int, dtype: torch.dtype, keep: bool
+    ) -> tuple[list[torch.Tensor], ...]:
+        """Per hidden layer: its output [h, 1] (ones in the last column) and dL/dz.
+
+        Kept between calls (one set per batch size) for the passes of a gradient step,
+        made anew for a forward pass alone (whose batch sizes may vary from call to call).
+        """
+        key = (batch, dtype)
+        if not keep or key not in self._buffers:
+            widths = [layer.out_features for layer in self.layers[:-1]]
             outs = [torch.ones(batch, n + 1, dtype=dtype) for n in widths]
+            if not keep:
+                return (outs,)
             grads = [torch.empty(batch, n, dtype=dtype) for n in widths]
-            self._buffers[batch] = (outs, grads)
-        return self._buffers[batch]
+            self._buffers[key] = (outs, grads)
+        return self._buffers[key]
 
     @torch.no_grad()
-    def forward(self, x_ones: torch.Tensor) -> torch.Tensor:
+    def forward(self, x_ones: torch.Tensor, keep: bool = True) -> torch.Tensor:
         """The network's output for inputs [x, 1] (:meth:`with_ones`).
 
-        Keeps what :meth:`backward` needs, until the next call.
+        With ``keep`` (a gradient step) the layers' outputs are kept for
+        :meth:`backward`, until the next call; without, nothing is kept.
         """
-        outs, grads = self._layer_buffers(len(x_ones))
+        weights = self._weight_blocks()
+        outs = self._layer_buffers(len(x_ones), x_ones.dtype, keep)[0]
         h = x_ones
-        for block, out in zip(self.weights[:-1], outs, strict=True):
+        for block, out in zip(weights[:-1], outs, strict=True):
             _activation(torch.mm(h, block, out=out[:, :-1]), self.act)
             h = out
-        self._last = (x_ones, outs, grads)
-        return torch.mm(h, self.weights[-1])
+        if keep:
+            self._last = (x_ones, outs, self._buffers[(len(x_ones), x_ones.dtype)][1])
+            self._last_weights = weights
+        return torch.mm(h, weights[-1])
 
     @torch.no_grad()
-    def backward(self, grad_out: torch.Tensor) -> None:
-        """Write dL/dtheta of the last :meth:`forward`'s batch into the flat gradient.
+    def backward(self, grad_out: torch.Tensor, rows: int | None = None) -> None:
+        """Write dL/dtheta of the last :meth:`forward`'s batch into the layers' ``.grad``.
+
+        Each gradient is overwritten (a parameter without one gets one).
 
         Args:
             grad_out: (B, out) dL/d(output).
+            rows: Backpropagate only the first ``rows`` rows of the forward pass's batch
+                (B of them); default all.
         """
         assert self._last is not None, "backward needs a forward pass first"
         x_ones, outs, grads = self._last
+        if rows is not None:
+            x_ones, outs, grads = x_ones[:rows], [h[:rows] for h in outs], [g[:rows] for g in grads]
+        weights, targets = self._last_weights, self._grad_blocks()
         inputs = [x_ones, *outs]
         g = grad_out
-        for i in range(len(self.weights) - 1, -1, -1):
-            _block_grad(inputs[i], g, self.grads[i])
+        for i in range(len(weights) - 1, -1, -1):
+            target = targets[i]
+            if target is None:  # not laid out as a block: computed here, then copied
+                layer = self.layers[i]
+                target = torch.empty_like(weights[i])
+                _block_grad(inputs[i], g, target)
+                for p, value in ((layer.weight, target[:-1].t()), (layer.bias, target[-1])):
+                    if p.grad is None:
+                        p.grad = value.clone()
+                    else:
+                        p.grad.copy_(value)
+            else:
+                _block_grad(inputs[i], g, target)
             if i > 0:
-                dh = torch.mm(g, self.weights[i][:-1].t(), out=grads[i - 1])
+                dh = torch.mm(g, weights[i][:-1].t(), out=grads[i - 1])
                 g = activation_backward(dh, outs[i - 1][:, :-1], self.act, out=dh)
 
 

@@ -104,8 +104,14 @@ class PPO(Agent):
             cfg.log_std_init,
             self.torch_gen,
         )
-        # the hand-written update keeps all parameters (and gradients) in one flat tensor
-        self._flat = FlatParameters(list(self.net.parameters())) if self.net.by_hand else None
+        # the hand-written update keeps all parameters (and gradients) in one flat
+        # tensor, each layer of the two MLPs as one [W^T; b] block (see ChainPasses)
+        chains = self.net.chains
+        self._flat = (
+            None
+            if chains is None
+            else FlatParameters(list(self.net.parameters()), [*chains[0], *chains[1]])
+        )
         self._params = [self._flat.flat] if self._flat is not None else list(self.net.parameters())
         self.optimizer = torch.optim.Adam(self._params, lr=cfg.learning_rate, eps=1e-5, fused=True)
         self.buffer = RolloutBuffer(
@@ -234,7 +240,8 @@ class PPO(Agent):
     def _state_tensors(self, training_state: bool) -> dict[str, Any]:
         state: dict[str, Any] = {"net": self.net.state_dict()}
         if training_state:
-            state["optimizer"] = self.optimizer.state_dict()
+            opt = self.optimizer.state_dict()
+            state["optimizer"] = self._flat.state_for_checkpoint(opt) if self._flat else opt
             if self.reward_scaler is not None:
                 state["reward_scaler"] = self.reward_scaler.rms.state_dict()
         return state
@@ -245,7 +252,7 @@ class PPO(Agent):
         self.net.load_state_dict(tensors["net"])
         if "optimizer" in tensors:
             state = tensors["optimizer"]
-            if self._flat is not None:  # a checkpoint from before the flat parameters
+            if self._flat is not None:  # per parameter (older checkpoints) or concatenated
                 state = self._flat.state_from_per_parameter(state)
             self.optimizer.load_state_dict(state)
         if "reward_scaler" in tensors and self.reward_scaler is not None:

@@ -11,7 +11,12 @@ import torch
 from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
 from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
-from policylab.deep.common.mlp_grad import fused_adam_step, mlp_backward, mlp_forward, mlp_layers
+from policylab.deep.common.mlp_grad import (
+    ChainPasses,
+    FlatParameters,
+    fused_adam_step,
+    mlp_layers,
+)
 from policylab.deep.common.off_policy import (
     OffPolicyAgent,
     OffPolicyConfig,
@@ -97,7 +102,7 @@ class SAC(OffPolicyAgent):
     of the alpha step does not change the result.
 
     The update builds no autograd graph: the actor's MLP is backpropagated by
-    :func:`~policylab.deep.common.mlp_grad.mlp_backward`, the critics by
+    :class:`~policylab.deep.common.mlp_grad.ChainPasses`, the critics by
     :func:`~policylab.deep.common.off_policy.twin_q_backward`, and each loss has its
     gradient written next to it (``twin_q_loss_grad``, ``sac_actor_loss_grad``,
     ``squashed_gaussian_grad``, ``entropy_coef_loss_grad``); the parameters after an
@@ -123,10 +128,11 @@ class SAC(OffPolicyAgent):
             self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, g
         )
         self._build_critics()
-        self._actor_params = list(self.actor.parameters())
         layers = mlp_layers(self.actor.net)
         assert layers is not None  # an ActorMLP is a plain MLP
-        self._actor_layers = layers
+        FlatParameters.of_chain(layers)  # each layer as one [W^T; b] block (ChainPasses)
+        self._actor_passes = ChainPasses(layers, cfg.activation)
+        self._actor_params = list(self.actor.parameters())
         lr = cfg.learning_rate
         alpha0, self.learn_alpha = _initial_alpha(cfg.ent_coef)
         self.log_alpha = torch.tensor(math.log(alpha0), requires_grad=self.learn_alpha)
@@ -164,12 +170,11 @@ class SAC(OffPolicyAgent):
         stats: Tensors = {}
         alpha = self.log_alpha.detach().exp()  # alpha before this step
 
-        # Every network's forward and backward pass is written out (mlp_grad for the
+        # Every network's forward and backward pass is written out (ChainPasses for the
         # actor, twin_q_forward/backward for the critics) and every loss's gradient is
         # its own tested function: no autograd graph. The policy at S and S' in one pass.
-        features, inputs = mlp_forward(
-            self._actor_layers, cfg.activation, torch.cat([obs, next_obs])
-        )
+        actor = self._actor_passes
+        features = actor.forward(actor.with_ones(torch.cat([obs, next_obs])))
         all_actions, all_log_prob, noise, in_range = self.actor.reparameterised(
             features, self.torch_gen
         )
@@ -193,7 +198,7 @@ class SAC(OffPolicyAgent):
             actions_pi, noise[:b], grad_action, grad_log_prob
         )
         grad_features = torch.cat([grad_mean, grad_log_std * in_range[:b]], 1)
-        mlp_backward(self._actor_layers, cfg.activation, [h[:b] for h in inputs], grad_features)
+        actor.backward(grad_features, rows=b)
         if self.learn_alpha:
             # 3. alpha (its loss reaches log alpha only: log pi is held constant in it)
             grad_log_alpha = entropy_coef_loss_grad(log_prob, self.target_entropy)

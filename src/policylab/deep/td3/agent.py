@@ -12,10 +12,10 @@ from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
 from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
 from policylab.deep.common.mlp_grad import (
+    ChainPasses,
+    FlatParameters,
     activation_backward,
     fused_adam_step,
-    mlp_backward,
-    mlp_forward,
     mlp_layers,
 )
 from policylab.deep.common.off_policy import (
@@ -71,7 +71,7 @@ class TD3(OffPolicyAgent):
        Polyak updates of the target actor and critics.
 
     Each update builds no autograd graph: the actors' MLPs go through
-    :mod:`~policylab.deep.common.mlp_grad`, the critics through
+    :class:`~policylab.deep.common.mlp_grad.ChainPasses`, the critics through
     :func:`~policylab.deep.common.off_policy.twin_q_backward`, from the losses'
     gradients (``twin_q_loss_grad``, ``td3_actor_loss_grad``); the parameters after an
     update equal those of the same update through autograd, to float rounding.
@@ -97,10 +97,13 @@ class TD3(OffPolicyAgent):
         )
         self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)
         self._build_critics()
-        self._actor_params = list(self.actor.parameters())
         layers, target_layers = mlp_layers(self.actor.net), mlp_layers(self.actor_target.net)
         assert layers is not None and target_layers is not None  # ActorMLPs are plain MLPs
-        self._actor_layers, self._target_actor_layers = layers, target_layers
+        for chain in (layers, target_layers):  # each layer as one [W^T; b] block
+            FlatParameters.of_chain(chain)
+        self._actor_passes = ChainPasses(layers, cfg.activation)
+        self._target_actor_passes = ChainPasses(target_layers, cfg.activation)
+        self._actor_params = list(self.actor.parameters())
         self._online = self._actor_params + self._critic_params
         self._targets = list(self.actor_target.parameters()) + self._target_params
         self.actor_optimizer = torch.optim.Adam(
@@ -127,12 +130,12 @@ class TD3(OffPolicyAgent):
     def _train_step(self, batch: ReplayBatch) -> Tensors:
         cfg = self.config
         obs, actions, rewards, next_obs, discounts = self._batch_tensors(batch)
-        act = cfg.activation
+        actor, target_actor = self._actor_passes, self._target_actor_passes
 
         # Every forward and backward pass is written out, as in SAC (no autograd graph).
         # 1. the critics, toward the clipped double-Q target of the smoothed target action
         noise = cfg.target_policy_noise * torch.randn(actions.shape, generator=self.torch_gen)
-        target_mu = torch.tanh(mlp_forward(self._target_actor_layers, act, next_obs)[0])
+        target_mu = torch.tanh(target_actor.forward(target_actor.with_ones(next_obs), keep=False))
         next_actions = smoothed_target_actions(target_mu, noise, cfg.target_noise_clip)
         y = clipped_double_q_targets(
             rewards,
@@ -145,15 +148,14 @@ class TD3(OffPolicyAgent):
 
         # 2. delayed: the actor through Q_1 with the critic's weights constant, then targets
         if self.n_updates % cfg.policy_delay == 0:
-            features, inputs = mlp_forward(self._actor_layers, act, obs)
-            mu = torch.tanh(features)
+            mu = torch.tanh(actor.forward(actor.with_ones(obs)))
             q1, cache = twin_q_forward(self.critic, obs, mu, [p[:1] for p in self._critic_params])
             grad_mu = twin_q_backward(
                 cache, td3_actor_loss_grad(q1), param_grads=False, action_grad=True
             )
             assert grad_mu is not None
             grad_features = activation_backward(grad_mu, mu, "tanh")
-            mlp_backward(self._actor_layers, act, inputs, grad_features)
+            actor.backward(grad_features)
             self._clip_grads(self._actor_params)
             fused_adam_step(self.actor_optimizer)
             polyak_update(self._targets, self._online, cfg.tau)

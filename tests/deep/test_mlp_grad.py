@@ -230,3 +230,36 @@ def test_narrow_output_layer_equals_the_plain_product() -> None:
         out = passes.forward(passes.with_ones(x), keep=False)
         assert out.is_contiguous() and out.shape == (batch, 3)
         torch.testing.assert_close(out, net(x).detach(), rtol=1e-6, atol=1e-6)
+
+
+def test_moments_loaded_into_block_views_are_laid_out_as_their_parameters() -> None:
+    # a fused Adam reads a parameter and its moments as flat memory: a row-major moment
+    # (a checkpoint of the layer's own tensors) under a transposed block view needs a copy
+    import copy
+
+    from policylab.deep.common.mlp_grad import match_state_layout
+
+    g = torch.Generator().manual_seed(4)
+    net, ref = nn.Linear(4, 3), nn.Linear(4, 3)
+    ref.load_state_dict(net.state_dict())
+    FlatParameters.of_chain([net])
+    assert net.weight.stride() == (1, 3)  # W is a transposed view of [W^T; b]
+    ref_opt = torch.optim.Adam(ref.parameters(), lr=0.1, fused=True)
+    opt = torch.optim.Adam(net.parameters(), lr=0.1, fused=True)
+    for step in range(4):
+        grads = [torch.randn(p.shape, generator=g) for p in ref.parameters()]
+        for p, q, grad in zip(ref.parameters(), net.parameters(), grads, strict=True):
+            p.grad = grad
+            q.grad.copy_(grad)  # type: ignore[union-attr]
+        ref_opt.step()
+        if step == 0:
+            with torch.no_grad():
+                for p, q in zip(net.parameters(), ref.parameters(), strict=True):
+                    p.copy_(q)
+            opt.load_state_dict(copy.deepcopy(ref_opt.state_dict()))  # as from a file
+            match_state_layout(opt)
+            assert opt.state[net.weight]["exp_avg"].stride() == (1, 3)
+        else:
+            opt.step()
+    for p, q in zip(net.parameters(), ref.parameters(), strict=True):
+        torch.testing.assert_close(p, q, rtol=0, atol=1e-6)

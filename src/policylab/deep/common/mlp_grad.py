@@ -42,8 +42,11 @@ __all__ = [
     "FlatParameters",
     "LinearChain",
     "NumpyMLP",
+    "Part",
     "activation_backward",
     "fused_adam_step",
+    "linear_parts",
+    "match_state_layout",
     "mlp_layers",
 ]
 
@@ -173,6 +176,60 @@ class NumpyMLP:
         return h
 
 
+Part = tuple[torch.Tensor, bool]
+"""A parameter that is part of a layer's [W^T; b] block, and whether it is held there
+transposed (an ``nn.Linear`` weight, (out, in), is the block's rows W^T)."""
+
+
+def linear_parts(layers: Sequence[nn.Linear]) -> list[list[Part]]:
+    """Each Linear layer's parameters as parts of its block [W^T; b]: W transposed, b."""
+    return [[(layer.weight, True), (layer.bias, False)] for layer in layers]
+
+
+def _rows(p: torch.Tensor, transposed: bool) -> torch.Tensor:
+    """The rows a parameter takes in its block: W^T, a bias as one row, or as it is."""
+    if transposed:
+        return p.mT
+    return p[None] if p.dim() == 1 else p
+
+
+def _block_of(rows: Sequence[torch.Tensor]) -> torch.Tensor | None:
+    """The block [R_1; R_2; ...] (stacked along the second-to-last axis) ``rows`` are views of.
+
+    None where they are not laid out so, one after the other in one tensor's memory.
+    """
+    first = rows[0]
+    n_out, n = first.shape[-1], sum(r.shape[-2] for r in rows)
+    shape = (*first.shape[:-2], n, n_out)
+    stride = (n * n_out, n_out, 1)[3 - len(shape) :]
+    storage, start, offset = first.untyped_storage().data_ptr(), first.storage_offset(), 0
+    for r in rows:
+        if (
+            r.dtype != first.dtype
+            or r.shape[:-2] != first.shape[:-2]
+            or r.shape[-1] != n_out
+            or r.untyped_storage().data_ptr() != storage
+            or r.storage_offset() != start + offset * n_out
+            or any(
+                a != b for a, b, size in zip(r.stride(), stride, r.shape, strict=True) if size > 1
+            )
+        ):
+            return None
+        offset += r.shape[-2]
+    return first.as_strided(shape, stride)
+
+
+def _mm(a: torch.Tensor, b: torch.Tensor, out: torch.Tensor | None = None) -> torch.Tensor:
+    """The product a b, or one per stacked network (a 2-d operand is shared by all)."""
+    if a.dim() == 2 and b.dim() == 2:
+        return torch.mm(a, b, out=out)
+    if a.dim() == 2:
+        a = a.expand(len(b), -1, -1)
+    elif b.dim() == 2:
+        b = b.expand(len(a), -1, -1)
+    return torch.bmm(a, b, out=out)
+
+
 def _block_grad(h: torch.Tensor, g: torch.Tensor, out: torch.Tensor) -> None:
     """Write [dW^T; db] = [h, 1]^T dz into ``out``, the narrow orientation first.
 
@@ -180,10 +237,10 @@ def _block_grad(h: torch.Tensor, g: torch.Tensor, out: torch.Tensor) -> None:
     (out, in + 1) product, transposed into place, costs about 7.6 us where the
     (in + 1, out) product costs 12.5 (a (128, 257) input, 3 outputs).
     """
-    if 4 * g.shape[1] <= h.shape[1]:
-        out.copy_(torch.mm(g.t(), h).t())
+    if 4 * g.shape[-1] <= h.shape[-1]:
+        out.copy_(_mm(g.mT, h).mT)
     else:
-        torch.mm(h.t(), g, out=out)
+        _mm(h.mT, g, out=out)
 
 
 class FlatParameters:
@@ -366,23 +423,6 @@ class FlatParameters:
         return {"state": {0: flat_state} if flat_state else {}, "param_groups": [group]}
 
 
-def _block_of(w: torch.Tensor, b: torch.Tensor) -> torch.Tensor | None:
-    """The (in + 1, out) block [W^T; b] that ``w`` (out, in) and ``b`` (out,) are views of.
-
-    None where they are not laid out so (the layer's own tensors, or a copy of them).
-    """
-    n_out, n_in = w.shape
-    if (
-        w.stride() == (1, n_out)
-        and b.stride() == (1,)
-        and b.dtype == w.dtype
-        and b.untyped_storage().data_ptr() == w.untyped_storage().data_ptr()
-        and b.storage_offset() == w.storage_offset() + n_in * n_out
-    ):
-        return w.as_strided((n_in + 1, n_out), (n_out, 1))
-    return None
-
-
 class ChainPasses:
     """Forward and backward passes of a plain MLP held as [W^T; b] blocks, one product each.
 
@@ -392,7 +432,7 @@ class ChainPasses:
 
         forward:   z_l = h^+_{l-1} [W_l^T; b_l],   h_l = act(z_l)   (no act on the last)
         backward:  [dW_l^T; db_l] = (h^+_{l-1})^T dz_l,
-                   dz_{l-1} = (dz_l W_l) * act'(z_{l-1})
+                   dz_{l-1} = (dz_l W_l) * act'(z_{l-1}),   dL/dx = dz_1 W_1
 
     so the bias is added inside the product and its gradient (the column sums of dz_l)
     comes out of the weight gradient's product as its last row: one matrix product per
@@ -402,18 +442,28 @@ class ChainPasses:
     nothing but its output. The sums run in another order than with a separate bias,
     so results agree with autograd's to float rounding.
 
-    The blocks are found from the layers' parameters at each call, so the passes follow
+    Several MLPs of the same shape can be stacked (k, in + 1, out) blocks, such as the
+    twin critics of SAC and TD3: every product is then one batched product over the k
+    networks, which share the input x and have outputs (k, B, out).
+
+    The blocks are found from the parameters at each call, so the passes follow
     parameters that move (a flat buffer made later, ``.double()``). A layer whose
-    weight and bias are not views of one block still works: its block is copied for
-    each forward pass, and its gradients copied into ``.grad`` after each backward one.
+    parameters are not views of one block still works: its block is copied for each
+    forward pass, and its gradients copied into ``.grad`` after each backward one. A
+    layer whose parameters have no ``.grad`` gets one laid out as a block.
 
     Args:
-        layers: The MLP's Linear layers (:func:`mlp_layers`), or a
-            :class:`FlatParameters` made with ``chain=`` those layers.
+        layers: The MLP's Linear layers (:func:`mlp_layers`), a :class:`FlatParameters`
+            made with ``chain=`` those layers, or each layer's block as its parts (the
+            parameters in the block's order, see :func:`linear_parts`).
         act: Activation name (tanh, relu or elu).
     """
 
-    def __init__(self, layers: FlatParameters | Sequence[nn.Linear], act: str) -> None:
+    def __init__(
+        self,
+        layers: FlatParameters | Sequence[nn.Linear] | Sequence[Sequence[Part]],
+        act: str,
+    ) -> None:
         if isinstance(layers, FlatParameters):
             if layers.chain is None:
                 raise InvalidArgumentError("ChainPasses needs FlatParameters made with chain=")
@@ -421,109 +471,187 @@ class ChainPasses:
         if act not in ("tanh", "relu", "elu"):
             raise InvalidArgumentError(f"activation must be tanh, relu or elu; got {act!r}")
         self.act = act
-        self.layers = list(layers)
+        self.parts: list[list[Part]] = [
+            linear_parts([layer])[0] if isinstance(layer, nn.Linear) else list(layer)
+            for layer in layers
+        ]
         self._weights: tuple[list[int], list[torch.Tensor | None]] = ([], [])
         self._grads: tuple[list[int], list[torch.Tensor | None]] = ([], [])
-        self._buffers: dict[tuple[int, torch.dtype], tuple[list[torch.Tensor], ...]] = {}
+        self._buffers: dict[tuple[int, ...], tuple[list[torch.Tensor], ...]] = {}
         self._last: tuple[torch.Tensor, list[torch.Tensor], list[torch.Tensor]] | None = None
         self._last_weights: list[torch.Tensor] = []
 
     @staticmethod
-    def with_ones(x: torch.Tensor) -> torch.Tensor:
-        """[x, 1]: a batch of inputs (flattened) with a column of ones appended."""
-        x = x.reshape(len(x), -1)
-        return torch.cat([x, torch.ones(len(x), 1, dtype=x.dtype)], dim=1)
+    def with_ones(*x: torch.Tensor) -> torch.Tensor:
+        """[x, 1]: a batch of inputs (flattened; several side by side) and a column of ones."""
+        cols = [t.reshape(len(t), -1) for t in x]
+        return torch.cat([*cols, torch.ones(len(cols[0]), 1, dtype=cols[0].dtype)], dim=1)
 
     def _weight_blocks(self) -> list[torch.Tensor]:
-        """Each layer's [W^T; b]: a view of its parameters where they are laid out so."""
-        ptrs = [layer.weight.data_ptr() for layer in self.layers]
+        """Each layer's block: a view of its parameters where they are laid out so."""
+        ptrs = [layer[0][0].data_ptr() for layer in self.parts]
         if ptrs != self._weights[0]:
-            views = [_block_of(layer.weight.detach(), layer.bias.detach()) for layer in self.layers]
+            views = [_block_of([_rows(p.detach(), t) for p, t in layer]) for layer in self.parts]
             self._weights = (ptrs, views)
         return [
-            torch.cat([layer.weight.detach().t(), layer.bias.detach()[None]]) if v is None else v
-            for layer, v in zip(self.layers, self._weights[1], strict=True)
+            torch.cat([_rows(p.detach(), t) for p, t in layer], -2) if v is None else v
+            for layer, v in zip(self.parts, self._weights[1], strict=True)
         ]
 
     def _grad_blocks(self) -> list[torch.Tensor | None]:
-        """Each layer's gradient block [dW^T; db] where ``.grad`` is laid out so, else None."""
-        grads = [(layer.weight.grad, layer.bias.grad) for layer in self.layers]
-        ptrs = [0 if w is None else w.data_ptr() for w, _ in grads]
+        """Each layer's gradient block where its parameters' ``.grad`` is laid out so."""
+        ptrs = [
+            0 if layer[0][0].grad is None else layer[0][0].grad.data_ptr() for layer in self.parts
+        ]
         if ptrs != self._grads[0]:
-            views = [None if w is None or b is None else _block_of(w, b) for w, b in grads]
+            views: list[torch.Tensor | None] = []
+            for layer in self.parts:
+                grads = [p.grad for p, _ in layer]
+                views.append(
+                    None
+                    if any(g is None for g in grads)
+                    else _block_of([_rows(g, t) for g, (_, t) in zip(grads, layer, strict=True)])  # type: ignore[arg-type]
+                )
             self._grads = (ptrs, views)
         return self._grads[1]
 
+    def _set_grads(self, i: int, block: torch.Tensor) -> None:
+        """Give layer ``i``'s parameters their gradients from its gradient block.
+
+        A parameter without ``.grad`` gets a view of ``block`` where the parameters are
+        views of a block themselves (a gradient then lies in memory as its parameter,
+        which a fused optimizer needs), else a copy laid out as the parameter; one with
+        a ``.grad`` gets it overwritten.
+        """
+        start, views = 0, self._weights[1][i] is not None
+        for p, transposed in self.parts[i]:
+            rows = _rows(p, transposed).shape[-2]
+            value = block[..., start : start + rows, :]
+            value = value.mT if transposed else value.reshape(p.shape)
+            if p.grad is not None:
+                p.grad.copy_(value)
+            else:
+                p.grad = value if views else torch.empty_like(p).copy_(value)
+            start += rows
+
     def _layer_buffers(
-        self, batch: int, dtype: torch.dtype, keep: bool
+        self, batch: int, dtype: torch.dtype, stack: tuple[int, ...], keep: bool
     ) -> tuple[list[torch.Tensor], ...]:
         """Per hidden layer: its output [h, 1] (ones in the last column) and dL/dz.
 
         Kept between calls (one set per batch size) for the passes of a gradient step,
         made anew for a forward pass alone (whose batch sizes may vary from call to call).
+        ``stack`` is (k,) for k stacked networks, else ().
         """
-        key = (batch, dtype)
-        if not keep or key not in self._buffers:
-            widths = [layer.out_features for layer in self.layers[:-1]]
-            outs = [torch.ones(batch, n + 1, dtype=dtype) for n in widths]
+        key = (batch, *stack)
+        have = self._buffers.get(key)
+        if not keep or have is None or have[0][0].dtype != dtype:
+            widths = [layer[0][0].shape[0 if layer[0][1] else -1] for layer in self.parts[:-1]]
+            outs = [torch.ones(*stack, batch, n + 1, dtype=dtype) for n in widths]
             if not keep:
                 return (outs,)
-            grads = [torch.empty(batch, n, dtype=dtype) for n in widths]
-            self._buffers[key] = (outs, grads)
-        return self._buffers[key]
+            grads = [torch.empty(*stack, batch, n, dtype=dtype) for n in widths]
+            self._buffers[key] = have = (outs, grads)
+        return have
 
     @torch.no_grad()
-    def forward(self, x_ones: torch.Tensor, keep: bool = True) -> torch.Tensor:
+    def forward(
+        self, x_ones: torch.Tensor, keep: bool = True, first: int | None = None
+    ) -> torch.Tensor:
         """The network's output for inputs [x, 1] (:meth:`with_ones`).
 
-        With ``keep`` (a gradient step) the layers' outputs are kept for
-        :meth:`backward`, until the next call; without, nothing is kept.
+        Args:
+            x_ones: (B, in + 1) inputs with a column of ones.
+            keep: Keep the layers' outputs for :meth:`backward` (a gradient step),
+                until the next call; without, nothing is kept.
+            first: Of stacked networks, run only the first ``first`` ones.
+
+        Returns:
+            (B, out), or (k, B, out) for k stacked networks.
         """
         weights = self._weight_blocks()
-        outs = self._layer_buffers(len(x_ones), x_ones.dtype, keep)[0]
+        if first is not None:
+            weights = [w[:first] for w in weights]
+        stack = tuple(weights[0].shape[:-2])
+        bufs = self._layer_buffers(len(x_ones), x_ones.dtype, stack, keep)
         h = x_ones
-        for block, out in zip(weights[:-1], outs, strict=True):
-            _activation(torch.mm(h, block, out=out[:, :-1]), self.act)
+        for block, out in zip(weights[:-1], bufs[0], strict=True):
+            _activation(_mm(h, block, out=out[..., :-1]), self.act)
             h = out
         if keep:
-            self._last = (x_ones, outs, self._buffers[(len(x_ones), x_ones.dtype)][1])
+            self._last = (x_ones, bufs[0], bufs[1])
             self._last_weights = weights
-        return torch.mm(h, weights[-1])
+        return _mm(h, weights[-1])
 
     @torch.no_grad()
-    def backward(self, grad_out: torch.Tensor, rows: int | None = None) -> None:
-        """Write dL/dtheta of the last :meth:`forward`'s batch into the layers' ``.grad``.
-
-        Each gradient is overwritten (a parameter without one gets one).
+    def backward(
+        self,
+        grad_out: torch.Tensor,
+        rows: int | None = None,
+        param_grads: bool = True,
+        input_grad: slice | None = None,
+    ) -> torch.Tensor | None:
+        """Backpropagate dL/d(output) of the last :meth:`forward` with ``keep``.
 
         Args:
-            grad_out: (B, out) dL/d(output).
+            grad_out: (B, out) dL/d(output), or (k, B, out) for k stacked networks.
             rows: Backpropagate only the first ``rows`` rows of the forward pass's batch
                 (B of them); default all.
+            param_grads: Write dL/dtheta into the parameters' ``.grad``, overwriting
+                it; False where the network is held constant (a critic in the actor's
+                loss), whose weight gradients are then never computed.
+            input_grad: Also return dL/dx for these columns of x (summed over stacked
+                networks), (B, columns).
+
+        Returns:
+            dL/dx, or None without ``input_grad``.
         """
         assert self._last is not None, "backward needs a forward pass first"
         x_ones, outs, grads = self._last
         if rows is not None:
-            x_ones, outs, grads = x_ones[:rows], [h[:rows] for h in outs], [g[:rows] for g in grads]
-        weights, targets = self._last_weights, self._grad_blocks()
+            x_ones = x_ones[:rows]
+            outs, grads = [h[..., :rows, :] for h in outs], [g[..., :rows, :] for g in grads]
+        weights = self._last_weights
+        targets = self._grad_blocks() if param_grads else [None] * len(weights)
         inputs = [x_ones, *outs]
         g = grad_out
         for i in range(len(weights) - 1, -1, -1):
-            target = targets[i]
-            if target is None:  # not laid out as a block: computed here, then copied
-                layer = self.layers[i]
-                target = torch.empty_like(weights[i])
-                _block_grad(inputs[i], g, target)
-                for p, value in ((layer.weight, target[:-1].t()), (layer.bias, target[-1])):
-                    if p.grad is None:
-                        p.grad = value.clone()
-                    else:
-                        p.grad.copy_(value)
-            else:
-                _block_grad(inputs[i], g, target)
+            if param_grads:
+                target = targets[i]
+                if target is None:  # not laid out as a block: computed here, then set
+                    target = torch.empty(weights[i].shape, dtype=g.dtype)
+                    _block_grad(inputs[i], g, target)
+                    self._set_grads(i, target)
+                else:
+                    _block_grad(inputs[i], g, target)
             if i > 0:
-                dh = torch.mm(g, weights[i][:-1].t(), out=grads[i - 1])
-                g = activation_backward(dh, outs[i - 1][:, :-1], self.act, out=dh)
+                dh = _mm(g, weights[i][..., :-1, :].mT, out=grads[i - 1])
+                g = activation_backward(dh, outs[i - 1][..., :-1], self.act, out=dh)
+        if input_grad is None:
+            return None
+        dx = _mm(g, weights[0][..., input_grad, :].mT)
+        return dx.sum(0) if dx.dim() == 3 else dx
+
+
+@torch.no_grad()
+def match_state_layout(optimizer: torch.optim.Optimizer) -> None:
+    """Lay each per-parameter tensor of ``optimizer``'s state out in memory as its parameter.
+
+    A fused Adam walks a parameter, its gradient and its moments as one stretch of
+    memory each, so they must share one layout. A parameter that is a transposed view of
+    a [W^T; b] block gets moments laid out so when Adam creates them, but a state loaded
+    from a checkpoint written with the layer's own tensors (row-major moments) would be
+    read in the wrong order; this copies such a tensor into the parameter's layout (the
+    same values). Call it after ``optimizer.load_state_dict``.
+    """
+    for p, st in optimizer.state.items():
+        for key, value in st.items():
+            if (
+                isinstance(value, torch.Tensor)
+                and value.shape == p.shape
+                and value.stride() != p.stride()
+            ):
+                st[key] = torch.empty_like(p).copy_(value)
 
 
 @torch.no_grad()

@@ -15,6 +15,7 @@ from policylab.deep.common.mlp_grad import (
     ChainPasses,
     FlatParameters,
     fused_adam_step,
+    match_state_layout,
     mlp_layers,
 )
 from policylab.deep.common.off_policy import (
@@ -130,7 +131,9 @@ class SAC(OffPolicyAgent):
         self._build_critics()
         layers = mlp_layers(self.actor.net)
         assert layers is not None  # an ActorMLP is a plain MLP
-        FlatParameters.of_chain(layers)  # each layer as one [W^T; b] block (ChainPasses)
+        # each layer as one [W^T; b] block (ChainPasses); the actor's optimizer keeps one
+        # tensor per parameter (views of the blocks), as autograd and checkpoints see them
+        FlatParameters.of_chain(layers)
         self._actor_passes = ChainPasses(layers, cfg.activation)
         self._actor_params = list(self.actor.parameters())
         lr = cfg.learning_rate
@@ -242,3 +245,5 @@ class SAC(OffPolicyAgent):
         if "actor_optimizer" in tensors:
             self.actor_optimizer.load_state_dict(tensors["actor_optimizer"])
             self.critic_optimizer.load_state_dict(tensors["critic_optimizer"])
+            for optimizer in (self.actor_optimizer, self.critic_optimizer):
+                match_state_layout(optimizer)  # moments laid out as the [W^T; b] blocks

@@ -16,6 +16,7 @@ from policylab.deep.common.mlp_grad import (
     FlatParameters,
     activation_backward,
     fused_adam_step,
+    match_state_layout,
     mlp_layers,
 )
 from policylab.deep.common.off_policy import (
@@ -99,7 +100,9 @@ class TD3(OffPolicyAgent):
         self._build_critics()
         layers, target_layers = mlp_layers(self.actor.net), mlp_layers(self.actor_target.net)
         assert layers is not None and target_layers is not None  # ActorMLPs are plain MLPs
-        for chain in (layers, target_layers):  # each layer as one [W^T; b] block
+        # each layer as one [W^T; b] block (ChainPasses); the actor's optimizer keeps one
+        # tensor per parameter (views of the blocks), as autograd and checkpoints see them
+        for chain in (layers, target_layers):
             FlatParameters.of_chain(chain)
         self._actor_passes = ChainPasses(layers, cfg.activation)
         self._target_actor_passes = ChainPasses(target_layers, cfg.activation)
@@ -182,3 +185,5 @@ class TD3(OffPolicyAgent):
         if "actor_optimizer" in tensors:
             self.actor_optimizer.load_state_dict(tensors["actor_optimizer"])
             self.critic_optimizer.load_state_dict(tensors["critic_optimizer"])
+            for optimizer in (self.actor_optimizer, self.critic_optimizer):
+                match_state_layout(optimizer)  # moments laid out as the [W^T; b] blocks

@@ -17,7 +17,7 @@ from policylab.deep.common.losses import (
 )
 from policylab.deep.common.mlp_grad import fused_adam_step
 from policylab.deep.common.networks import TwinQNetwork
-from policylab.deep.common.off_policy import twin_q_backward, twin_q_forward
+from policylab.deep.common.off_policy import twin_q_passes
 from policylab.deep.sac.losses import (
     entropy_coef_loss,
     entropy_coef_loss_grad,
@@ -45,19 +45,29 @@ def test_twin_q_backward_is_autograds(hidden: tuple[int, ...], act: str) -> None
     q = net(obs, act_in)
     (q * dq).sum().backward()
     want = [p.grad.clone() for p in net.parameters()]  # type: ignore[union-attr]
-    q_hand, cache = twin_q_forward(net, obs, act_in.detach())
+    passes, x = twin_q_passes(net), torch.cat([obs, act_in.detach(), torch.ones(6, 1)], 1)
+    actions = slice(3, -1)  # the action's columns of [s, a, 1]
+    q_hand = passes.forward(x)[..., 0]
     torch.testing.assert_close(q_hand, q.detach())
     for p in net.parameters():
         p.grad = torch.full_like(p, 7.0)  # overwritten, not added to
-    grad_action = twin_q_backward(cache, dq, action_grad=True)
+    grad_action = passes.backward(dq.unsqueeze(-1), input_grad=actions)
     for p, w in zip(net.parameters(), want, strict=True):
         torch.testing.assert_close(p.grad, w)
     torch.testing.assert_close(grad_action, act_in.grad)
-    # Q_1 alone through first-axis slices, critics held constant: no parameter gradients
-    q1, cache1 = twin_q_forward(net, obs, act_in.detach(), [p[:1] for p in net.parameters()])
+    for p in net.parameters():  # and without .grad: laid out as the blocks
+        p.grad = None
+    passes.forward(x)
+    passes.backward(dq.unsqueeze(-1))
+    for p, w in zip(net.parameters(), want, strict=True):
+        torch.testing.assert_close(p.grad, w)
+        assert p.grad.stride() == p.stride()  # type: ignore[union-attr]
+    # Q_1 alone (the first of the stacked blocks), critics held constant: no parameter
+    # gradients
+    q1 = passes.forward(x, first=1)[..., 0]
     torch.testing.assert_close(q1, q.detach()[:1])
     before = [p.grad.clone() for p in net.parameters()]  # type: ignore[union-attr]
-    g1 = twin_q_backward(cache1, dq[:1], param_grads=False, action_grad=True)
+    g1 = passes.backward(dq[:1].unsqueeze(-1), param_grads=False, input_grad=actions)
     for p, b in zip(net.parameters(), before, strict=True):
         torch.testing.assert_close(p.grad, b)
     act_in.grad = None

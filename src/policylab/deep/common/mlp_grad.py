@@ -196,27 +196,30 @@ def _rows(p: torch.Tensor, transposed: bool) -> torch.Tensor:
 def _block_of(rows: Sequence[torch.Tensor]) -> torch.Tensor | None:
     """The block [R_1; R_2; ...] (stacked along the second-to-last axis) ``rows`` are views of.
 
-    None where they are not laid out so, one after the other in one tensor's memory.
+    A block of one network is (n, out), row-major; k stacked networks' blocks (k, n,
+    out) lie in memory as (n, k, out), row j of every network together, so that each
+    part (a (k, rows, out) parameter) is one stretch of memory. None where ``rows`` are
+    not laid out so, one after the other in one tensor's memory.
     """
     first = rows[0]
-    n_out, n = first.shape[-1], sum(r.shape[-2] for r in rows)
-    shape = (*first.shape[:-2], n, n_out)
-    stride = (n * n_out, n_out, 1)[3 - len(shape) :]
+    stack, n_out = first.shape[:-2], first.shape[-1]
+    row = n_out * (stack[0] if stack else 1)  # the memory one row of the block takes
+    stride = (n_out, row, 1) if stack else (row, 1)
     storage, start, offset = first.untyped_storage().data_ptr(), first.storage_offset(), 0
     for r in rows:
         if (
             r.dtype != first.dtype
-            or r.shape[:-2] != first.shape[:-2]
+            or r.shape[:-2] != stack
             or r.shape[-1] != n_out
             or r.untyped_storage().data_ptr() != storage
-            or r.storage_offset() != start + offset * n_out
+            or r.storage_offset() != start + offset * row
             or any(
                 a != b for a, b, size in zip(r.stride(), stride, r.shape, strict=True) if size > 1
             )
         ):
             return None
         offset += r.shape[-2]
-    return first.as_strided(shape, stride)
+    return first.as_strided((*stack, offset, n_out), stride)
 
 
 def _mm(a: torch.Tensor, b: torch.Tensor, out: torch.Tensor | None = None) -> torch.Tensor:
@@ -527,7 +530,10 @@ class ChainPasses:
         for p, transposed in self.parts[i]:
             rows = _rows(p, transposed).shape[-2]
             value = block[..., start : start + rows, :]
-            value = value.mT if transposed else value.reshape(p.shape)
+            if transposed:
+                value = value.mT
+            elif value.shape != p.shape:  # a bias (out,) from its row (1, out)
+                value = value[0]
             if p.grad is not None:
                 p.grad.copy_(value)
             else:
@@ -619,7 +625,7 @@ class ChainPasses:
             if param_grads:
                 target = targets[i]
                 if target is None:  # not laid out as a block: computed here, then set
-                    target = torch.empty(weights[i].shape, dtype=g.dtype)
+                    target = torch.empty_like(weights[i])  # laid out as the block
                     _block_grad(inputs[i], g, target)
                     self._set_grads(i, target)
                 else:

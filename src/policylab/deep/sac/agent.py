@@ -22,8 +22,6 @@ from policylab.deep.common.off_policy import (
     OffPolicyAgent,
     OffPolicyConfig,
     Tensors,
-    twin_q_backward,
-    twin_q_forward,
 )
 from policylab.deep.sac.losses import (
     entropy_coef_loss_grad,
@@ -103,8 +101,8 @@ class SAC(OffPolicyAgent):
     of the alpha step does not change the result.
 
     The update builds no autograd graph: the actor's MLP is backpropagated by
-    :class:`~policylab.deep.common.mlp_grad.ChainPasses`, the critics by
-    :func:`~policylab.deep.common.off_policy.twin_q_backward`, and each loss has its
+    :class:`~policylab.deep.common.mlp_grad.ChainPasses`, the critics by the same
+    passes on their stacked blocks, and each loss has its
     gradient written next to it (``twin_q_loss_grad``, ``sac_actor_loss_grad``,
     ``squashed_gaussian_grad``, ``entropy_coef_loss_grad``); the parameters after an
     update equal those of the same update through autograd, to float rounding. The
@@ -173,10 +171,10 @@ class SAC(OffPolicyAgent):
         stats: Tensors = {}
         alpha = self.log_alpha.detach().exp()  # alpha before this step
 
-        # Every network's forward and backward pass is written out (ChainPasses for the
-        # actor, twin_q_forward/backward for the critics) and every loss's gradient is
-        # its own tested function: no autograd graph. The policy at S and S' in one pass.
-        actor = self._actor_passes
+        # Every network's forward and backward pass is written out (ChainPasses, for the
+        # critics on their stacked blocks) and every loss's gradient is its own tested
+        # function: no autograd graph. The policy at S and S' in one pass.
+        actor, critic, target = self._actor_passes, self._critic_passes, self._target_passes
         features = actor.forward(actor.with_ones(torch.cat([obs, next_obs])))
         all_actions, all_log_prob, noise, in_range = self.actor.reparameterised(
             features, self.torch_gen
@@ -184,18 +182,18 @@ class SAC(OffPolicyAgent):
         actions_pi, log_prob = all_actions[:b], all_log_prob[:b]
 
         # 1. the critics, toward the soft clipped double-Q target
-        next_q = twin_q_forward(self.critic_target, next_obs, all_actions[b:], self._target_params)[
-            0
-        ]
+        next_q = target.forward(target.with_ones(next_obs, all_actions[b:]), keep=False)[..., 0]
         y = clipped_double_q_targets(rewards, discounts, next_q, all_log_prob[b:], alpha)
         critic_loss, q = self._critic_step(obs, actions, y)
 
         # 2. the actor, through the updated critics with their weights held constant:
         # dJ/dQ, then dJ/da = dJ/dQ dQ/da through the critics, then through the squash
-        q_pi, cache = twin_q_forward(self.critic, obs, actions_pi, self._critic_params)
+        q_pi = critic.forward(critic.with_ones(obs, actions_pi))[..., 0]
         actor_loss = sac_actor_loss(log_prob, q_pi, alpha)
         grad_log_prob, grad_q = sac_actor_loss_grad(log_prob, q_pi, alpha)
-        grad_action = twin_q_backward(cache, grad_q, param_grads=False, action_grad=True)
+        grad_action = critic.backward(
+            grad_q.unsqueeze(-1), param_grads=False, input_grad=slice(self.obs_dim, -1)
+        )
         assert grad_action is not None
         grad_mean, grad_log_std = squashed_gaussian_grad(
             actions_pi, noise[:b], grad_action, grad_log_prob

@@ -23,8 +23,6 @@ from policylab.deep.common.off_policy import (
     OffPolicyAgent,
     OffPolicyConfig,
     Tensors,
-    twin_q_backward,
-    twin_q_forward,
 )
 from policylab.deep.td3.losses import smoothed_target_actions, td3_actor_loss, td3_actor_loss_grad
 from policylab.deep.td3.networks import DeterministicActor
@@ -72,8 +70,8 @@ class TD3(OffPolicyAgent):
        Polyak updates of the target actor and critics.
 
     Each update builds no autograd graph: the actors' MLPs go through
-    :class:`~policylab.deep.common.mlp_grad.ChainPasses`, the critics through
-    :func:`~policylab.deep.common.off_policy.twin_q_backward`, from the losses'
+    :class:`~policylab.deep.common.mlp_grad.ChainPasses`, the critics through the
+    same passes on their stacked blocks, from the losses'
     gradients (``twin_q_loss_grad``, ``td3_actor_loss_grad``); the parameters after an
     update equal those of the same update through autograd, to float rounding.
 
@@ -134,6 +132,7 @@ class TD3(OffPolicyAgent):
         cfg = self.config
         obs, actions, rewards, next_obs, discounts = self._batch_tensors(batch)
         actor, target_actor = self._actor_passes, self._target_actor_passes
+        critic, target = self._critic_passes, self._target_passes
 
         # Every forward and backward pass is written out, as in SAC (no autograd graph).
         # 1. the critics, toward the clipped double-Q target of the smoothed target action
@@ -143,7 +142,7 @@ class TD3(OffPolicyAgent):
         y = clipped_double_q_targets(
             rewards,
             discounts,
-            twin_q_forward(self.critic_target, next_obs, next_actions, self._target_params)[0],
+            target.forward(target.with_ones(next_obs, next_actions), keep=False)[..., 0],
         )
         critic_loss, q = self._critic_step(obs, actions, y)
         self.n_updates += 1
@@ -152,9 +151,11 @@ class TD3(OffPolicyAgent):
         # 2. delayed: the actor through Q_1 with the critic's weights constant, then targets
         if self.n_updates % cfg.policy_delay == 0:
             mu = torch.tanh(actor.forward(actor.with_ones(obs)))
-            q1, cache = twin_q_forward(self.critic, obs, mu, [p[:1] for p in self._critic_params])
-            grad_mu = twin_q_backward(
-                cache, td3_actor_loss_grad(q1), param_grads=False, action_grad=True
+            q1 = critic.forward(critic.with_ones(obs, mu), first=1)[..., 0]
+            grad_mu = critic.backward(
+                td3_actor_loss_grad(q1).unsqueeze(-1),
+                param_grads=False,
+                input_grad=slice(self.obs_dim, -1),
             )
             assert grad_mu is not None
             grad_features = activation_backward(grad_mu, mu, "tanh")

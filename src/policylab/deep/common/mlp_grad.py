@@ -27,6 +27,7 @@ pass in NumPy, for acting on a few observations.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from typing import Any
 
@@ -480,7 +481,8 @@ class ChainPasses:
         ]
         self._weights: tuple[list[int], list[torch.Tensor | None]] = ([], [])
         self._grads: tuple[list[int], list[torch.Tensor | None]] = ([], [])
-        self._buffers: dict[tuple[int, ...], tuple[list[torch.Tensor], ...]] = {}
+        self._buffers: dict[tuple[Any, ...], tuple[list[torch.Tensor], ...]] = {}
+        self._scratch: dict[tuple[Any, ...], tuple[list[torch.Tensor], ...]] = {}
         self._last: tuple[torch.Tensor, list[torch.Tensor], list[torch.Tensor]] | None = None
         self._last_weights: list[torch.Tensor] = []
 
@@ -545,16 +547,17 @@ class ChainPasses:
     ) -> tuple[list[torch.Tensor], ...]:
         """Per hidden layer: its output [h, 1] (ones in the last column) and dL/dz.
 
-        Kept between calls (one set per batch size) for the passes of a gradient step,
-        made anew for a forward pass alone (whose batch sizes may vary from call to call).
-        ``stack`` is (k,) for k stacked networks, else ().
+        Kept between calls: for the passes of a gradient step one set per batch size,
+        for a forward pass alone (whose batch sizes may vary from call to call) the
+        outputs of the last size only. ``stack`` is (k,) for k stacked networks, else ().
         """
-        key = (batch, *stack)
-        have = self._buffers.get(key)
-        if not keep or have is None or have[0][0].dtype != dtype:
+        key = (batch, dtype, *stack)
+        have = self._buffers.get(key) if keep else self._scratch.get(key)
+        if have is None:
             widths = [layer[0][0].shape[0 if layer[0][1] else -1] for layer in self.parts[:-1]]
             outs = [torch.ones(*stack, batch, n + 1, dtype=dtype) for n in widths]
             if not keep:
+                self._scratch = {key: (outs,)}
                 return (outs,)
             grads = [torch.empty(*stack, batch, n, dtype=dtype) for n in widths]
             self._buffers[key] = have = (outs, grads)
@@ -639,25 +642,85 @@ class ChainPasses:
         return dx.sum(0) if dx.dim() == 3 else dx
 
 
+def _whole(tensors: Sequence[torch.Tensor]) -> torch.Tensor | None:
+    """A 1-d tensor over the memory ``tensors`` share, where they tile it exactly, else None.
+
+    Each tensor must be dense (its elements one stretch of memory, in any order of the
+    axes) and the stretches must follow one another from the memory's start to its end.
+    """
+    first = tensors[0]
+    storage, size = first.untyped_storage(), first.element_size()
+    spans = []
+    for t in tensors:
+        if t.untyped_storage().data_ptr() != storage.data_ptr() or t.dtype != first.dtype:
+            return None
+        span = 1 + sum((n - 1) * s for n, s in zip(t.shape, t.stride(), strict=True) if n > 0)
+        if span != t.numel():
+            return None
+        spans.append((t.storage_offset(), t.numel()))
+    end = 0
+    for start, n in sorted(spans):
+        if start != end:
+            return None
+        end += n
+    if end * size != storage.nbytes():
+        return None
+    whole: torch.Tensor = first.new_empty(0).set_(storage, 0, (end,))  # type: ignore[call-overload]
+    return whole
+
+
 @torch.no_grad()
 def match_state_layout(optimizer: torch.optim.Optimizer) -> None:
     """Lay each per-parameter tensor of ``optimizer``'s state out in memory as its parameter.
 
     A fused Adam walks a parameter, its gradient and its moments as one stretch of
-    memory each, so they must share one layout. A parameter that is a transposed view of
-    a [W^T; b] block gets moments laid out so when Adam creates them, but a state loaded
-    from a checkpoint written with the layer's own tensors (row-major moments) would be
-    read in the wrong order; this copies such a tensor into the parameter's layout (the
-    same values). Call it after ``optimizer.load_state_dict``.
+    memory each, so they must share one layout: a state loaded from a checkpoint written
+    with a layer's own tensors (row-major moments) under a parameter that is a
+    transposed view of a [W^T; b] block would be read in the wrong order. Where a
+    group's parameters tile one tensor's memory (views of the blocks of one network),
+    its moments are moved into one tensor each laid out alike, so that
+    :func:`fused_adam_step` updates the group as one tensor. The values stay. Call it
+    after ``optimizer.load_state_dict``.
     """
-    for p, st in optimizer.state.items():
-        for key, value in st.items():
-            if (
-                isinstance(value, torch.Tensor)
-                and value.shape == p.shape
-                and value.stride() != p.stride()
-            ):
-                st[key] = torch.empty_like(p).copy_(value)
+    for group in optimizer.param_groups:
+        params = [p for p in group["params"] if p in optimizer.state]
+        if not params:
+            continue
+        whole = _whole(params)
+        first = optimizer.state[params[0]]
+        for key in [k for k, v in first.items() if isinstance(v, torch.Tensor) and v.dim() > 0]:
+            buffer = None if whole is None else torch.empty_like(whole)
+            for p in params:
+                st = optimizer.state[p]
+                value = st[key]
+                if buffer is not None:
+                    view = buffer.as_strided(p.shape, p.stride(), p.storage_offset())
+                    st[key] = view.copy_(value)
+                elif value.stride() != p.stride():
+                    st[key] = torch.empty_like(p).copy_(value)
+
+
+def _flat_group(
+    params: Sequence[torch.Tensor], states: Sequence[dict[str, Any]]
+) -> tuple[torch.Tensor, ...] | None:
+    """A group's parameters, gradients and moments as one tensor each, where they can be.
+
+    That is where each of the four tiles one tensor's memory and every parameter, its
+    gradient and its moments lie at the same place in theirs.
+    """
+    grads = [p.grad for p in params]
+    lists = [params, grads, [s["exp_avg"] for s in states], [s["exp_avg_sq"] for s in states]]
+    for i, p in enumerate(params):
+        where = (p.storage_offset(), p.stride())
+        if any((t[i].storage_offset(), t[i].stride()) != where for t in lists[1:]):
+            return None
+    wholes = [_whole(t) for t in lists]
+    return None if any(w is None for w in wholes) else tuple(wholes)  # type: ignore[arg-type]
+
+
+_FLAT_GROUPS: weakref.WeakKeyDictionary[torch.optim.Optimizer, dict[int, Any]] = (
+    weakref.WeakKeyDictionary()
+)
 
 
 @torch.no_grad()
@@ -672,6 +735,11 @@ def fused_adam_step(optimizer: torch.optim.Optimizer) -> None:
     ``state_dict`` stays what it is. Anything else (a first step, which creates the
     state; AMSGrad, maximize or decoupled weight decay; a non-fused or non-Adam
     optimizer; a tensor learning rate) falls back to ``optimizer.step()``.
+
+    A group whose parameters are views of one tensor's memory (the [W^T; b] blocks of a
+    network), with gradients and moments laid out alike (:func:`match_state_layout`,
+    which the first step runs), is updated as that one tensor: the same elementwise
+    arithmetic, without the kernel's copies of strided views.
 
     Args:
         optimizer: The optimizer to step.
@@ -693,19 +761,31 @@ def fused_adam_step(optimizer: torch.optim.Optimizer) -> None:
         params = [p for p in g["params"] if p.grad is not None]
         if not all(p in state and "exp_avg" in state[p] for p in params):
             optimizer.step()
+            match_state_layout(optimizer)
             return
         todo.append((g, params))
-    for g, params in todo:
+    cache = _FLAT_GROUPS.setdefault(optimizer, {})
+    for i, (g, params) in enumerate(todo):
         if not params:
             continue
         st = [state[p] for p in params]
         steps = [s["step"] for s in st]
         for step in steps:  # one add_ each: _foreach_add_ costs more for a few tensors
             step.add_(1)
+        tensors: list[list[torch.Tensor]] = [
+            params, [p.grad for p in params], [s["exp_avg"] for s in st],
+            [s["exp_avg_sq"] for s in st],
+        ]  # fmt: skip
+        if len(params) > 1:
+            key = (tuple(p.data_ptr() for p in params), *(tuple(map(id, t)) for t in tensors[1:]))
+            if key not in cache.get(i, {}):
+                cache[i] = {key: _flat_group(params, st)}
+            flat = cache[i][key]
+            if flat is not None:  # every step tensor holds the same count
+                tensors, steps = [[t] for t in flat], steps[:1]
         beta1, beta2 = g["betas"]
         torch._fused_adam_(
-            params, [p.grad for p in params], [s["exp_avg"] for s in st],
-            [s["exp_avg_sq"] for s in st], [], steps,
+            tensors[0], tensors[1], tensors[2], tensors[3], [], steps,
             amsgrad=False, lr=g["lr"], beta1=beta1, beta2=beta2,
             weight_decay=g["weight_decay"], eps=g["eps"], maximize=False,
             grad_scale=None, found_inf=None,

@@ -270,19 +270,23 @@ class TwinQNetwork(nn.Module):
         return [first, *([(ws[i + 1], False), (bs[i], False)] for i in range(1, len(bs)))]
 
     @torch.no_grad()
-    def lay_out_blocks(self) -> None:
+    def lay_out_blocks(self, grads: bool = False) -> None:
         """Move each layer's parameters into one block [W; b] of both critics (same values).
 
         The block (2, in + 1, out) lies in memory as (in + 1, 2, out), so that each
         parameter is one stretch of memory (which a fused optimizer needs) while both
-        critics' blocks are strided views for one batched product. Gradients are
-        dropped (the first hand-written backward pass lays them out as blocks too). A
-        copy of the network (``copy.deepcopy``) holds its own tensors until this is
-        called on it.
+        critics' blocks are strided views for one batched product. A copy of the
+        network (``copy.deepcopy``) holds its own tensors until this is called on it.
+
+        Args:
+            grads: Also give the parameters gradients (zero) laid out alike in one
+                tensor, so that an optimizer step can update all of them as one tensor
+                (without, they lose any gradient they have).
         """
         layers = self.block_parts()
         first = layers[0][0][0]
         flat = first.new_empty(sum(p.numel() for layer in layers for p, _ in layer))
+        grad_flat = torch.zeros_like(flat) if grads else None
         offset = 0
         for layer in layers:
             k, n_out = first.shape[0], layer[0][0].shape[-1]
@@ -292,7 +296,12 @@ class TwinQNetwork(nn.Module):
             for p, _ in layer:
                 view = block[:, row : row + p.shape[-2]]
                 view.copy_(p)
-                p.data, p.grad = view, None
+                p.data = view
+                p.grad = (
+                    None
+                    if grad_flat is None
+                    else grad_flat.as_strided(view.shape, view.stride(), view.storage_offset())
+                )
                 row += p.shape[-2]
             offset += n * k * n_out
 

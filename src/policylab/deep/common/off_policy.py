@@ -175,6 +175,7 @@ class OffPolicyAgent(Agent):
         )
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
         self.critic_target.lay_out_blocks()
+        self.critic.lay_out_blocks(grads=True)  # one tensor for the optimizer's step
         self._critic_passes = twin_q_passes(self.critic)
         self._target_passes = twin_q_passes(self.critic_target)
         # the parameter lists the updates pass around, collected once

@@ -479,7 +479,8 @@ class ChainPasses:
             linear_parts([layer])[0] if isinstance(layer, nn.Linear) else list(layer)
             for layer in layers
         ]
-        self._weights: tuple[list[int], list[torch.Tensor | None]] = ([], [])
+        self._firsts = [layer[0][0] for layer in self.parts]  # moved with their layer
+        self._weights: tuple[list[int], list[torch.Tensor | None], bool] = ([], [], False)
         self._grads: tuple[list[int], list[torch.Tensor | None]] = ([], [])
         self._buffers: dict[tuple[Any, ...], tuple[list[torch.Tensor], ...]] = {}
         self._scratch: dict[tuple[Any, ...], tuple[list[torch.Tensor], ...]] = {}
@@ -490,14 +491,22 @@ class ChainPasses:
     def with_ones(*x: torch.Tensor) -> torch.Tensor:
         """[x, 1]: a batch of inputs (flattened; several side by side) and a column of ones."""
         cols = [t.reshape(len(t), -1) for t in x]
+        if len(cols) == 1:
+            return torch.constant_pad_nd(cols[0], (0, 1), 1.0)
         return torch.cat([*cols, torch.ones(len(cols[0]), 1, dtype=cols[0].dtype)], dim=1)
 
     def _weight_blocks(self) -> list[torch.Tensor]:
-        """Each layer's block: a view of its parameters where they are laid out so."""
-        ptrs = [layer[0][0].data_ptr() for layer in self.parts]
+        """Each layer's block: a view of its parameters where they are laid out so.
+
+        Found again when the memory of a layer's first parameter moved (parameters move
+        together: into a flat buffer, by ``.double()``).
+        """
+        ptrs = [p.data_ptr() for p in self._firsts]
         if ptrs != self._weights[0]:
             views = [_block_of([_rows(p.detach(), t) for p, t in layer]) for layer in self.parts]
-            self._weights = (ptrs, views)
+            self._weights = (ptrs, views, all(v is not None for v in views))
+        if self._weights[2]:
+            return self._weights[1]  # type: ignore[return-value]
         return [
             torch.cat([_rows(p.detach(), t) for p, t in layer], -2) if v is None else v
             for layer, v in zip(self.parts, self._weights[1], strict=True)
@@ -505,9 +514,7 @@ class ChainPasses:
 
     def _grad_blocks(self) -> list[torch.Tensor | None]:
         """Each layer's gradient block where its parameters' ``.grad`` is laid out so."""
-        ptrs = [
-            0 if layer[0][0].grad is None else layer[0][0].grad.data_ptr() for layer in self.parts
-        ]
+        ptrs = [0 if p.grad is None else p.grad.data_ptr() for p in self._firsts]
         if ptrs != self._grads[0]:
             views: list[torch.Tensor | None] = []
             for layer in self.parts:
@@ -545,7 +552,7 @@ class ChainPasses:
     def _layer_buffers(
         self, batch: int, dtype: torch.dtype, stack: tuple[int, ...], keep: bool
     ) -> tuple[list[torch.Tensor], ...]:
-        """Per hidden layer: its output [h, 1] (ones in the last column) and dL/dz.
+        """Per hidden layer: its output [h, 1] (ones in the last column) and [dL/dz, *].
 
         Kept between calls: for the passes of a gradient step one set per batch size,
         for a forward pass alone (whose batch sizes may vary from call to call) the
@@ -559,7 +566,7 @@ class ChainPasses:
             if not keep:
                 self._scratch = {key: (outs,)}
                 return (outs,)
-            grads = [torch.empty(*stack, batch, n, dtype=dtype) for n in widths]
+            grads = [torch.empty(*stack, batch, n + 1, dtype=dtype) for n in widths]
             self._buffers[key] = have = (outs, grads)
         return have
 
@@ -584,8 +591,10 @@ class ChainPasses:
         stack = tuple(weights[0].shape[:-2])
         bufs = self._layer_buffers(len(x_ones), x_ones.dtype, stack, keep)
         h = x_ones
+        whole = self.act != "tanh"  # ReLU and ELU keep the ones: act(1) = 1
         for block, out in zip(weights[:-1], bufs[0], strict=True):
-            _activation(_mm(h, block, out=out[..., :-1]), self.act)
+            z = _mm(h, block, out=out[..., :-1])
+            _activation(out if whole else z, self.act)  # a whole buffer runs faster
             h = out
         if keep:
             self._last = (x_ones, bufs[0], bufs[1])
@@ -633,9 +642,10 @@ class ChainPasses:
                     self._set_grads(i, target)
                 else:
                     _block_grad(inputs[i], g, target)
-            if i > 0:
-                dh = _mm(g, weights[i][..., :-1, :].mT, out=grads[i - 1])
-                g = activation_backward(dh, outs[i - 1][..., :-1], self.act, out=dh)
+            if i > 0:  # dz [W; b]^T = [dh, dz b]: the last column is left unused, so that
+                # act' runs over whole buffers (at the ones column it multiplies by 1 or 0)
+                dh = _mm(g, weights[i].mT, out=grads[i - 1])
+                g = activation_backward(dh, outs[i - 1], self.act, out=dh)[..., :-1]
         if input_grad is None:
             return None
         dx = _mm(g, weights[0][..., input_grad, :].mT)
@@ -739,7 +749,9 @@ def fused_adam_step(optimizer: torch.optim.Optimizer) -> None:
     A group whose parameters are views of one tensor's memory (the [W^T; b] blocks of a
     network), with gradients and moments laid out alike (:func:`match_state_layout`,
     which the first step runs), is updated as that one tensor: the same elementwise
-    arithmetic, without the kernel's copies of strided views.
+    arithmetic, without the kernel's copies of strided views (the kernel's vectorised
+    and scalar loops may round an element differently in the last place, so there the
+    numbers agree with ``optimizer.step()`` to float rounding).
 
     Args:
         optimizer: The optimizer to step.

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import RolloutBuffer
 from policylab.deep.common.config import check, documented, option
-from policylab.deep.common.mlp_grad import FlatParameters, fused_adam_step
+from policylab.deep.common.mlp_grad import ChainPasses, FlatParameters, fused_adam_step
 from policylab.deep.common.networks import clip_grad_norm
 from policylab.deep.common.normalize import RewardScaler
 from policylab.deep.ppo.losses import (
@@ -175,6 +175,8 @@ class PPO(Agent):
         """n_epochs passes of minibatch Adam steps on the rollout; returns mean metrics."""
         cfg, buf = self.config, self.buffer
         obs = torch.as_tensor(buf.flat("obs"))
+        if self.net.by_hand:  # [S, 1] for the hand-written passes, once for the rollout
+            obs = ChainPasses.with_ones(obs)
         actions = torch.as_tensor(buf.flat("actions"))
         # the per-step scalars side by side, so a minibatch takes them in one gather
         scalars = torch.as_tensor(
@@ -199,7 +201,7 @@ class PPO(Agent):
                 else:
                     old_logp, old_v, adv, returns, mb_obs, mb_actions = whole
                 if self.net.by_hand:  # every gradient is overwritten: no zero_grad
-                    logp, entropy, v, cache = self.net.forward_cached(mb_obs, mb_actions)
+                    logp, entropy, v, cache = self.net.forward_cached(mb_obs, mb_actions, True)
                     log_ratio = logp - old_logp
                     ratio = log_ratio.exp()
                     pg_loss, g_ratio = clipped_surrogate_loss_grad(ratio, adv, cfg.clip_range)

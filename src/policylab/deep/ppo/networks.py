@@ -194,17 +194,19 @@ class ActorCritic(nn.Module):
         return self.chains is not None
 
     def forward_cached(
-        self, obs: torch.Tensor, actions: torch.Tensor
+        self, obs: torch.Tensor, actions: torch.Tensor, ones: bool = False
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, Cache]:
         """:meth:`evaluate_actions` without autograd, keeping what the backward pass needs.
 
         Returns ``(log_prob, entropy, value, cache)``; pass ``cache`` to
         :meth:`backward_cached` (before the next call: the MLPs' passes keep their
-        layers' outputs until then). Only for networks with :attr:`by_hand`.
+        layers' outputs until then). Only for networks with :attr:`by_hand`. With
+        ``ones`` the observations come flattened with a column of ones, [s, 1]
+        (:meth:`~policylab.deep.common.mlp_grad.ChainPasses.with_ones`).
         """
         assert self._passes is not None
         actor, critic = self._passes
-        x = actor.with_ones(obs)
+        x = obs if ones else actor.with_ones(obs)
         out, v = actor.forward(x), critic.forward(x)
         with torch.no_grad():
             if self.continuous:

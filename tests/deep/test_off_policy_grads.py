@@ -203,3 +203,19 @@ def test_td3_update_is_the_autograd_update() -> None:
             getattr(agent, name).parameters(), getattr(ref, name).parameters(), strict=True
         ):
             torch.testing.assert_close(p, r)
+
+
+def test_polyak_averages_run_over_whole_tensors_and_follow_the_parameters() -> None:
+    # a network and its target copy laid out alike: one lerp over each pair of tensors
+    sac = pl.deep.SAC("Pendulum-v1", seed=0, hidden=(8, 8))
+    td3 = pl.deep.TD3("Pendulum-v1", seed=0, hidden=(8, 8))
+    assert len(sac._polyak[0]) == 1 and len(td3._polyak[0]) == 2  # critics; actor too
+    with torch.no_grad():
+        for p in sac.critic.parameters():
+            p.add_(1.0)
+    before = [p.detach().clone() for p in sac.critic_target.parameters()]
+    polyak_update(*sac._polyak, 0.25)
+    for t, p, b in zip(
+        sac.critic_target.parameters(), sac.critic.parameters(), before, strict=True
+    ):
+        torch.testing.assert_close(t, b + 0.25 * (p - b))

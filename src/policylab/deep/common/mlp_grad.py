@@ -45,6 +45,7 @@ __all__ = [
     "NumpyMLP",
     "Part",
     "activation_backward",
+    "as_one_tensor",
     "fused_adam_step",
     "linear_parts",
     "match_state_layout",
@@ -708,6 +709,26 @@ def match_state_layout(optimizer: torch.optim.Optimizer) -> None:
                     st[key] = view.copy_(value)
                 elif value.stride() != p.stride():
                     st[key] = torch.empty_like(p).copy_(value)
+
+
+def as_one_tensor(
+    a: Sequence[torch.Tensor], b: Sequence[torch.Tensor]
+) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+    """``a`` and ``b`` as one tensor each, where each tiles one tensor's memory alike.
+
+    That is where a[i] lies at the same place of its memory as b[i] of its own (two
+    networks of one shape laid out as blocks, such as a network and its target copy);
+    else they are returned as they are. An elementwise update of the pairs (a Polyak
+    average) then runs once, over whole tensors.
+    """
+    same = len(a) == len(b) and all(
+        (x.shape, x.storage_offset(), x.stride()) == (y.shape, y.storage_offset(), y.stride())
+        for x, y in zip(a, b, strict=True)
+    )
+    whole_a, whole_b = (_whole(a), _whole(b)) if same else (None, None)
+    if whole_a is None or whole_b is None or len(whole_a) != len(whole_b):
+        return list(a), list(b)
+    return [whole_a], [whole_b]
 
 
 def _flat_group(

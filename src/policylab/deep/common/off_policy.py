@@ -29,7 +29,7 @@ from policylab.deep.common.buffers import NStepWindow, ReplayBatch, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check_replay_settings, option
 from policylab.deep.common.losses import twin_q_loss, twin_q_loss_grad
-from policylab.deep.common.mlp_grad import ChainPasses, fused_adam_step
+from policylab.deep.common.mlp_grad import ChainPasses, as_one_tensor, fused_adam_step
 from policylab.deep.common.networks import TwinQNetwork, clip_grad_norm
 from policylab.exceptions import InvalidArgumentError, NonFiniteError
 from policylab.validation import fmt_number
@@ -181,6 +181,8 @@ class OffPolicyAgent(Agent):
         # the parameter lists the updates pass around, collected once
         self._critic_params = list(self.critic.parameters())
         self._target_params = list(self.critic_target.parameters())
+        # the Polyak averages' operands: one tensor each, where the blocks allow
+        self._polyak = as_one_tensor(self._target_params, self._critic_params)
         self.critic_optimizer = torch.optim.Adam(
             self._critic_params, lr=cfg.learning_rate, fused=True
         )

@@ -212,7 +212,7 @@ class SAC(OffPolicyAgent):
         # 4. the target critics
         self.n_updates += 1
         if self.n_updates % cfg.target_update_interval == 0:
-            polyak_update(self._target_params, self._critic_params, cfg.tau)
+            polyak_update(*self._polyak, cfg.tau)
         stats.update(
             critic_loss=critic_loss,
             actor_loss=actor_loss,

@@ -15,6 +15,7 @@ from policylab.deep.common.mlp_grad import (
     ChainPasses,
     FlatParameters,
     activation_backward,
+    as_one_tensor,
     fused_adam_step,
     match_state_layout,
     mlp_layers,
@@ -107,6 +108,8 @@ class TD3(OffPolicyAgent):
         self._actor_params = list(self.actor.parameters())
         self._online = self._actor_params + self._critic_params
         self._targets = list(self.actor_target.parameters()) + self._target_params
+        actor_pair = as_one_tensor(list(self.actor_target.parameters()), self._actor_params)
+        self._polyak = (actor_pair[0] + self._polyak[0], actor_pair[1] + self._polyak[1])
         self.actor_optimizer = torch.optim.Adam(
             self._actor_params, lr=cfg.learning_rate, fused=True
         )
@@ -162,7 +165,7 @@ class TD3(OffPolicyAgent):
             actor.backward(grad_features)
             self._clip_grads(self._actor_params)
             fused_adam_step(self.actor_optimizer)
-            polyak_update(self._targets, self._online, cfg.tau)
+            polyak_update(*self._polyak, cfg.tau)
             stats["actor_loss"] = td3_actor_loss(q1[0])
         return stats
 

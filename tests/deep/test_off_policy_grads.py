@@ -208,14 +208,26 @@ def test_td3_update_is_the_autograd_update() -> None:
 def test_polyak_averages_run_over_whole_tensors_and_follow_the_parameters() -> None:
     # a network and its target copy laid out alike: one lerp over each pair of tensors
     sac = pl.deep.SAC("Pendulum-v1", seed=0, hidden=(8, 8))
-    td3 = pl.deep.TD3("Pendulum-v1", seed=0, hidden=(8, 8))
-    assert len(sac._polyak[0]) == 1 and len(td3._polyak[0]) == 2  # critics; actor too
     with torch.no_grad():
         for p in sac.critic.parameters():
             p.add_(1.0)
     before = [p.detach().clone() for p in sac.critic_target.parameters()]
-    polyak_update(*sac._polyak, 0.25)
+    sac._polyak_update(sac._target_params, sac._critic_params)
+    (pair,) = sac._polyak_operands.values()
+    assert len(pair[0]) == len(pair[1]) == 1  # one tensor each
+    tau = sac.config.tau
     for t, p, b in zip(
         sac.critic_target.parameters(), sac.critic.parameters(), before, strict=True
     ):
-        torch.testing.assert_close(t, b + 0.25 * (p - b))
+        torch.testing.assert_close(t, b + tau * (p - b))
+    # a copy of the agent averages its own tensors
+    copied = copy.deepcopy(sac)
+    with torch.no_grad():
+        for p in copied.critic.parameters():
+            p.add_(1.0)
+    before = [p.detach().clone() for p in copied.critic_target.parameters()]
+    copied._polyak_update(copied._target_params, copied._critic_params)
+    for t, p, b in zip(
+        copied.critic_target.parameters(), copied.critic.parameters(), before, strict=True
+    ):
+        torch.testing.assert_close(t, b + tau * (p - b))

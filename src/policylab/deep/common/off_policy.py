@@ -28,7 +28,7 @@ from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import NStepWindow, ReplayBatch, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check_replay_settings, option
-from policylab.deep.common.losses import twin_q_loss, twin_q_loss_grad
+from policylab.deep.common.losses import polyak_update, twin_q_loss, twin_q_loss_grad
 from policylab.deep.common.mlp_grad import ChainPasses, as_one_tensor, fused_adam_step
 from policylab.deep.common.networks import TwinQNetwork, clip_grad_norm
 from policylab.exceptions import InvalidArgumentError, NonFiniteError
@@ -181,11 +181,26 @@ class OffPolicyAgent(Agent):
         # the parameter lists the updates pass around, collected once
         self._critic_params = list(self.critic.parameters())
         self._target_params = list(self.critic_target.parameters())
-        # the Polyak averages' operands: one tensor each, where the blocks allow
-        self._polyak = as_one_tensor(self._target_params, self._critic_params)
+        self._polyak_operands: dict[
+            tuple[int, int], tuple[list[torch.Tensor], list[torch.Tensor]]
+        ] = {}
         self.critic_optimizer = torch.optim.Adam(
             self._critic_params, lr=cfg.learning_rate, fused=True
         )
+
+    def _polyak_update(
+        self, target: Sequence[torch.Tensor], online: Sequence[torch.Tensor]
+    ) -> None:
+        """The Polyak average theta' <- tau theta + (1 - tau) theta' of a network's target.
+
+        As one tensor each where both are laid out alike as blocks (:func:`as_one_tensor`,
+        found again when their memory moved, as in a copy of the agent).
+        """
+        key = (target[0].data_ptr(), online[0].data_ptr())
+        whole = self._polyak_operands.get(key)
+        if whole is None:
+            whole = self._polyak_operands[key] = as_one_tensor(target, online)
+        polyak_update(whole[0], whole[1], self.config.tau)
 
     @staticmethod
     def _batch_tensors(batch: ReplayBatch) -> tuple[torch.Tensor, ...]:

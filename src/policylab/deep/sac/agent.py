@@ -10,7 +10,7 @@ import torch
 
 from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
-from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
+from policylab.deep.common.losses import clipped_double_q_targets
 from policylab.deep.common.mlp_grad import (
     ChainPasses,
     FlatParameters,
@@ -212,7 +212,7 @@ class SAC(OffPolicyAgent):
         # 4. the target critics
         self.n_updates += 1
         if self.n_updates % cfg.target_update_interval == 0:
-            polyak_update(*self._polyak, cfg.tau)
+            self._polyak_update(self._target_params, self._critic_params)
         stats.update(
             critic_loss=critic_loss,
             actor_loss=actor_loss,

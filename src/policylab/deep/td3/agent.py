@@ -10,12 +10,11 @@ import torch
 
 from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
-from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
+from policylab.deep.common.losses import clipped_double_q_targets
 from policylab.deep.common.mlp_grad import (
     ChainPasses,
     FlatParameters,
     activation_backward,
-    as_one_tensor,
     fused_adam_step,
     match_state_layout,
     mlp_layers,
@@ -106,10 +105,9 @@ class TD3(OffPolicyAgent):
         self._actor_passes = ChainPasses(layers, cfg.activation)
         self._target_actor_passes = ChainPasses(target_layers, cfg.activation)
         self._actor_params = list(self.actor.parameters())
+        self._actor_target_params = list(self.actor_target.parameters())
         self._online = self._actor_params + self._critic_params
-        self._targets = list(self.actor_target.parameters()) + self._target_params
-        actor_pair = as_one_tensor(list(self.actor_target.parameters()), self._actor_params)
-        self._polyak = (actor_pair[0] + self._polyak[0], actor_pair[1] + self._polyak[1])
+        self._targets = self._actor_target_params + self._target_params
         self.actor_optimizer = torch.optim.Adam(
             self._actor_params, lr=cfg.learning_rate, fused=True
         )
@@ -165,7 +163,8 @@ class TD3(OffPolicyAgent):
             actor.backward(grad_features)
             self._clip_grads(self._actor_params)
             fused_adam_step(self.actor_optimizer)
-            polyak_update(*self._polyak, cfg.tau)
+            self._polyak_update(self._actor_target_params, self._actor_params)
+            self._polyak_update(self._target_params, self._critic_params)
             stats["actor_loss"] = td3_actor_loss(q1[0])
         return stats
 

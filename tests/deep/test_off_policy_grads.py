@@ -231,3 +231,13 @@ def test_polyak_averages_run_over_whole_tensors_and_follow_the_parameters() -> N
         copied.critic_target.parameters(), copied.critic.parameters(), before, strict=True
     ):
         torch.testing.assert_close(t, b + tau * (p - b))
+
+
+def test_first_critic_alone_gives_no_parameter_gradients() -> None:
+    from policylab.exceptions import InvalidArgumentError
+
+    net = TwinQNetwork(3, 2, (4,), "relu", _gen(0))
+    passes = twin_q_passes(net)
+    passes.forward(torch.ones(5, 6), first=1)
+    with pytest.raises(InvalidArgumentError, match="param_grads=False"):
+        passes.backward(torch.ones(1, 5, 1))

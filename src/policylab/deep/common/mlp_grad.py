@@ -487,6 +487,7 @@ class ChainPasses:
         self._scratch: dict[tuple[Any, ...], tuple[list[torch.Tensor], ...]] = {}
         self._last: tuple[torch.Tensor, list[torch.Tensor], list[torch.Tensor]] | None = None
         self._last_weights: list[torch.Tensor] = []
+        self._last_first: int | None = None
 
     @staticmethod
     def with_ones(*x: torch.Tensor) -> torch.Tensor:
@@ -599,7 +600,7 @@ class ChainPasses:
             h = out
         if keep:
             self._last = (x_ones, bufs[0], bufs[1])
-            self._last_weights = weights
+            self._last_weights, self._last_first = weights, first
         return _mm(h, weights[-1])
 
     @torch.no_grad()
@@ -626,6 +627,11 @@ class ChainPasses:
             dL/dx, or None without ``input_grad``.
         """
         assert self._last is not None, "backward needs a forward pass first"
+        if param_grads and self._last_first is not None:
+            raise InvalidArgumentError(
+                "ChainPasses.backward: a forward pass over the first stacked networks only "
+                "has no parameter gradients; pass param_grads=False"
+            )
         x_ones, outs, grads = self._last
         if rows is not None:
             x_ones = x_ones[:rows]

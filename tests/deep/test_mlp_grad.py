@@ -10,8 +10,6 @@ from torch import nn
 from policylab.deep.common.mlp_grad import (
     ChainPasses,
     FlatParameters,
-    mlp_backward,
-    mlp_forward,
     mlp_layers,
 )
 from policylab.deep.common.networks import MLP, build_torso
@@ -25,7 +23,8 @@ from policylab.exceptions import InvalidArgumentError
 
 
 @pytest.mark.parametrize("act", ["tanh", "relu", "elu"])
-def test_mlp_backward_equals_autograd(act: str) -> None:
+def test_chain_passes_on_the_layers_own_tensors_equal_autograd(act: str) -> None:
+    # parameters not laid out as blocks: each forward copies them, each backward writes .grad
     g = torch.Generator().manual_seed(0)
     net = nn.Sequential(
         build_torso(gym.spaces.Box(-1, 1, (3, 2)), (7, 5), act, g), MLP(5, (), 4, generator=g)
@@ -37,10 +36,16 @@ def test_mlp_backward_equals_autograd(act: str) -> None:
     loss = (torch.sin(net(x)) * w).sum()  # any loss of the output
     loss.backward()  # type: ignore[no-untyped-call]
     expected = [p.grad.clone() for p in net.parameters()]  # type: ignore[union-attr]
-    out, inputs = mlp_forward(chain, act, x)
+    passes = ChainPasses(chain, act)
+    out = passes.forward(passes.with_ones(x))
     torch.testing.assert_close(out, net(x).detach(), rtol=0, atol=1e-12)
     net.zero_grad(set_to_none=True)
-    mlp_backward(chain, act, inputs, torch.cos(out) * w)
+    passes.backward(torch.cos(out) * w)
+    for p, e in zip(net.parameters(), expected, strict=True):
+        torch.testing.assert_close(p.grad, e, rtol=0, atol=1e-12)
+    # a gradient already there is overwritten, not added to; only the first rows count
+    passes.forward(passes.with_ones(torch.cat([x, x.flip(0)])))
+    passes.backward(torch.cos(out) * w, rows=len(x))
     for p, e in zip(net.parameters(), expected, strict=True):
         torch.testing.assert_close(p.grad, e, rtol=0, atol=1e-12)
 
@@ -185,7 +190,7 @@ def test_fused_adam_step_and_flat_clip_equal_the_optimizer_bit_for_bit() -> None
 
 
 @pytest.mark.parametrize("act", ["tanh", "relu", "elu"])
-def test_numpy_forward_equals_mlp_forward_and_follows_the_parameters(act: str) -> None:
+def test_numpy_forward_equals_chain_passes_and_follows_the_parameters(act: str) -> None:
     import numpy as np
 
     from policylab.deep.common.mlp_grad import NumpyMLP
@@ -194,29 +199,99 @@ def test_numpy_forward_equals_mlp_forward_and_follows_the_parameters(act: str) -
     net = nn.Sequential(build_torso(gym.spaces.Box(-1, 1, (3,)), (16, 8), act, g), nn.Linear(8, 3))
     chain = mlp_layers(net)
     assert chain is not None
-    fwd = NumpyMLP(chain, act)
+    fwd, passes = NumpyMLP(chain, act), ChainPasses(chain, act)
     x = torch.randn(5, 3, generator=g)
     torch.testing.assert_close(
-        torch.from_numpy(fwd(x.numpy())), mlp_forward(chain, act, x)[0], rtol=1e-6, atol=1e-6
+        torch.from_numpy(fwd(x.numpy())),
+        passes.forward(passes.with_ones(x), keep=False),
+        rtol=1e-6,
+        atol=1e-6,
     )
     with torch.no_grad():  # an in-place update (an optimizer step) is seen
         chain[1].weight.mul_(-2.0)
     flat = FlatParameters(list(net.parameters()))  # and so is memory that moved
     with torch.no_grad():
         flat.flat.add_(0.1)
-    expected = mlp_forward(chain, act, x)[0]
+    expected = passes.forward(passes.with_ones(x), keep=False)
     torch.testing.assert_close(torch.from_numpy(fwd(x.numpy())), expected, rtol=1e-6, atol=1e-6)
     assert fwd(np.zeros((0, 3), np.float32)).shape == (0, 3)
 
 
 def test_narrow_output_layer_equals_the_plain_product() -> None:
-    # a 2-4 output layer on a batch is computed as (W h^T + b)^T: the same numbers
+    # a 2-4 output layer on batches of any size, on blocks: the same numbers
     g = torch.Generator().manual_seed(2)
     net = nn.Sequential(nn.Linear(6, 32), nn.ReLU(), nn.Linear(32, 3))
     chain = mlp_layers(net)
     assert chain is not None
+    FlatParameters.of_chain(chain)
+    passes = ChainPasses(chain, "relu")
     for batch in (1, 31, 32, 200):
         x = torch.randn(batch, 6, generator=g)
-        out = mlp_forward(chain, "relu", x)[0]
+        out = passes.forward(passes.with_ones(x), keep=False)
         assert out.is_contiguous() and out.shape == (batch, 3)
         torch.testing.assert_close(out, net(x).detach(), rtol=1e-6, atol=1e-6)
+
+
+def test_moments_loaded_into_block_views_are_laid_out_as_their_parameters() -> None:
+    # a fused Adam reads a parameter and its moments as flat memory: a row-major moment
+    # (a checkpoint of the layer's own tensors) under a transposed block view needs a copy
+    import copy
+
+    from policylab.deep.common.mlp_grad import match_state_layout
+
+    g = torch.Generator().manual_seed(4)
+    net, ref = nn.Linear(4, 3), nn.Linear(4, 3)
+    ref.load_state_dict(net.state_dict())
+    FlatParameters.of_chain([net])
+    assert net.weight.stride() == (1, 3)  # W is a transposed view of [W^T; b]
+    ref_opt = torch.optim.Adam(ref.parameters(), lr=0.1, fused=True)
+    opt = torch.optim.Adam(net.parameters(), lr=0.1, fused=True)
+    for step in range(4):
+        grads = [torch.randn(p.shape, generator=g) for p in ref.parameters()]
+        for p, q, grad in zip(ref.parameters(), net.parameters(), grads, strict=True):
+            p.grad = grad
+            q.grad.copy_(grad)  # type: ignore[union-attr]
+        ref_opt.step()
+        if step == 0:
+            with torch.no_grad():
+                for p, q in zip(net.parameters(), ref.parameters(), strict=True):
+                    p.copy_(q)
+            opt.load_state_dict(copy.deepcopy(ref_opt.state_dict()))  # as from a file
+            match_state_layout(opt)
+            assert opt.state[net.weight]["exp_avg"].stride() == (1, 3)
+        else:
+            opt.step()
+    for p, q in zip(net.parameters(), ref.parameters(), strict=True):
+        torch.testing.assert_close(p, q, rtol=0, atol=1e-6)
+
+
+def test_fused_adam_step_on_block_views_is_the_per_parameter_step() -> None:
+    # parameters, gradients and moments that are views of one tensor each step as that
+    # tensor: the same elementwise arithmetic as Adam on the layers' own tensors (the
+    # kernel's vectorised and scalar loops may round a moment differently in the last place)
+    from policylab.deep.common.mlp_grad import _FLAT_GROUPS, fused_adam_step
+
+    g = torch.Generator().manual_seed(6)
+    net = MLP(5, (7,), 3, "relu", generator=g)
+    ref = MLP(5, (7,), 3, "relu", generator=g)
+    ref.load_state_dict(net.state_dict())
+    chain = mlp_layers(net)
+    assert chain is not None
+    FlatParameters.of_chain(chain)
+    opt = torch.optim.Adam(net.parameters(), lr=1e-2, fused=True)
+    ref_opt = torch.optim.Adam(ref.parameters(), lr=1e-2, fused=True)
+    for _ in range(4):
+        for p, q in zip(net.parameters(), ref.parameters(), strict=True):
+            q.grad = torch.randn(q.shape, generator=g)
+            p.grad.copy_(q.grad)  # type: ignore[union-attr]
+        fused_adam_step(opt)
+        ref_opt.step()
+        for p, q in zip(net.parameters(), ref.parameters(), strict=True):
+            torch.testing.assert_close(p, q, rtol=1e-6, atol=1e-7)
+    # after the first step the moments were moved into one tensor: one update per group
+    assert next(iter(_FLAT_GROUPS[opt][0].values())) is not None
+    moments = [opt.state[p]["exp_avg"] for p in net.parameters()]
+    assert len({m.untyped_storage().data_ptr() for m in moments}) == 1
+    for p, q in zip(net.parameters(), ref.parameters(), strict=True):
+        for key in ("exp_avg", "exp_avg_sq"):
+            torch.testing.assert_close(opt.state[p][key], ref_opt.state[q][key], rtol=1e-6, atol=0)

@@ -17,7 +17,7 @@ from policylab.deep.common.losses import (
 )
 from policylab.deep.common.mlp_grad import fused_adam_step
 from policylab.deep.common.networks import TwinQNetwork
-from policylab.deep.common.off_policy import twin_q_backward, twin_q_forward
+from policylab.deep.common.off_policy import twin_q_passes
 from policylab.deep.sac.losses import (
     entropy_coef_loss,
     entropy_coef_loss_grad,
@@ -45,19 +45,29 @@ def test_twin_q_backward_is_autograds(hidden: tuple[int, ...], act: str) -> None
     q = net(obs, act_in)
     (q * dq).sum().backward()
     want = [p.grad.clone() for p in net.parameters()]  # type: ignore[union-attr]
-    q_hand, cache = twin_q_forward(net, obs, act_in.detach())
+    passes, x = twin_q_passes(net), torch.cat([obs, act_in.detach(), torch.ones(6, 1)], 1)
+    actions = slice(3, -1)  # the action's columns of [s, a, 1]
+    q_hand = passes.forward(x)[..., 0]
     torch.testing.assert_close(q_hand, q.detach())
     for p in net.parameters():
         p.grad = torch.full_like(p, 7.0)  # overwritten, not added to
-    grad_action = twin_q_backward(cache, dq, action_grad=True)
+    grad_action = passes.backward(dq.unsqueeze(-1), input_grad=actions)
     for p, w in zip(net.parameters(), want, strict=True):
         torch.testing.assert_close(p.grad, w)
     torch.testing.assert_close(grad_action, act_in.grad)
-    # Q_1 alone through first-axis slices, critics held constant: no parameter gradients
-    q1, cache1 = twin_q_forward(net, obs, act_in.detach(), [p[:1] for p in net.parameters()])
+    for p in net.parameters():  # and without .grad: laid out as the blocks
+        p.grad = None
+    passes.forward(x)
+    passes.backward(dq.unsqueeze(-1))
+    for p, w in zip(net.parameters(), want, strict=True):
+        torch.testing.assert_close(p.grad, w)
+        assert p.grad.stride() == p.stride()  # type: ignore[union-attr]
+    # Q_1 alone (the first of the stacked blocks), critics held constant: no parameter
+    # gradients
+    q1 = passes.forward(x, first=1)[..., 0]
     torch.testing.assert_close(q1, q.detach()[:1])
     before = [p.grad.clone() for p in net.parameters()]  # type: ignore[union-attr]
-    g1 = twin_q_backward(cache1, dq[:1], param_grads=False, action_grad=True)
+    g1 = passes.backward(dq[:1].unsqueeze(-1), param_grads=False, input_grad=actions)
     for p, b in zip(net.parameters(), before, strict=True):
         torch.testing.assert_close(p.grad, b)
     act_in.grad = None
@@ -193,3 +203,41 @@ def test_td3_update_is_the_autograd_update() -> None:
             getattr(agent, name).parameters(), getattr(ref, name).parameters(), strict=True
         ):
             torch.testing.assert_close(p, r)
+
+
+def test_polyak_averages_run_over_whole_tensors_and_follow_the_parameters() -> None:
+    # a network and its target copy laid out alike: one lerp over each pair of tensors
+    sac = pl.deep.SAC("Pendulum-v1", seed=0, hidden=(8, 8))
+    with torch.no_grad():
+        for p in sac.critic.parameters():
+            p.add_(1.0)
+    before = [p.detach().clone() for p in sac.critic_target.parameters()]
+    sac._polyak_update(sac._target_params, sac._critic_params)
+    (pair,) = sac._polyak_operands.values()
+    assert len(pair[0]) == len(pair[1]) == 1  # one tensor each
+    tau = sac.config.tau
+    for t, p, b in zip(
+        sac.critic_target.parameters(), sac.critic.parameters(), before, strict=True
+    ):
+        torch.testing.assert_close(t, b + tau * (p - b))
+    # a copy of the agent averages its own tensors
+    copied = copy.deepcopy(sac)
+    with torch.no_grad():
+        for p in copied.critic.parameters():
+            p.add_(1.0)
+    before = [p.detach().clone() for p in copied.critic_target.parameters()]
+    copied._polyak_update(copied._target_params, copied._critic_params)
+    for t, p, b in zip(
+        copied.critic_target.parameters(), copied.critic.parameters(), before, strict=True
+    ):
+        torch.testing.assert_close(t, b + tau * (p - b))
+
+
+def test_first_critic_alone_gives_no_parameter_gradients() -> None:
+    from policylab.exceptions import InvalidArgumentError
+
+    net = TwinQNetwork(3, 2, (4,), "relu", _gen(0))
+    passes = twin_q_passes(net)
+    passes.forward(torch.ones(5, 6), first=1)
+    with pytest.raises(InvalidArgumentError, match="param_grads=False"):
+        passes.backward(torch.ones(1, 5, 1))

@@ -196,10 +196,9 @@ def test_checkpoint_with_per_parameter_optimizer_state_still_loads(tmp_path: Pat
     params = list(agent.net.parameters())
     sizes = [p.numel() for p in params]
 
-    def own(p: torch.Tensor, key: str) -> torch.Tensor:  # p's slice of a flat moment
+    def own(p: torch.Tensor, key: str) -> torch.Tensor:  # p's view of a flat moment
         k = next(i for i, q in enumerate(buf.params) if q is p)
-        start = buf.offsets[k]
-        return flat["state"][0][key][start : start + p.numel()].view_as(p)
+        return buf.view(flat["state"][0][key], k)
 
     split = [{k: own(p, k) for k in ("exp_avg", "exp_avg_sq")} for p in params]
     old = {
@@ -279,3 +278,46 @@ def test_whole_rollout_minibatch_gathered_once_equals_gathering_every_epoch() ->
     for p, q in zip(fast.net.parameters(), slow.net.parameters(), strict=True):
         torch.testing.assert_close(p, q, rtol=1e-5, atol=1e-6)
     assert fast.rng.random() == slow.rng.random()  # the same draws
+
+
+@pytest.mark.parametrize(
+    "action_space", [gym.spaces.Discrete(3), gym.spaces.Box(-1.0, 1.0, (2,))], ids=str
+)
+def test_hand_written_gradient_on_the_agents_flat_blocks_equals_autograd(
+    action_space: gym.Space[Any],
+) -> None:
+    # the layout the agent trains in: both MLPs' layers as [W^T; b] blocks of one flat
+    # tensor, the log std beside them; the gradients land in the flat gradient
+    import copy
+
+    from policylab.deep.common.mlp_grad import FlatParameters
+
+    g = torch.Generator().manual_seed(5)
+    net = ActorCritic(gym.spaces.Box(-1.0, 1.0, (4,)), action_space, (8, 6), "tanh", 0.2, g)
+    ref = copy.deepcopy(net)
+    assert net.chains is not None
+    flat = FlatParameters(list(net.parameters()), [*net.chains[0], *net.chains[1]])
+    with torch.no_grad():  # away from the initialisation, so every term has a gradient
+        flat.flat.add_(0.3 * torch.randn(flat.flat.shape, generator=g))
+        ref.load_state_dict(net.state_dict())
+    n = 32
+    obs = torch.randn(n, 4, generator=g)
+    actions = (
+        torch.randint(0, 3, (n,), generator=g)
+        if isinstance(action_space, gym.spaces.Discrete)
+        else torch.randn(n, 2, generator=g)
+    )
+    adv, ret = torch.randn(2, n, generator=g)
+    logp, ent, v = ref.evaluate_actions(obs, actions)
+    ratio = logp.exp()  # old log-probabilities 0
+    loss = clipped_surrogate_loss(ratio, adv, 0.2) + 0.5 * value_loss(v, v.detach(), ret, None)
+    (loss - 0.01 * ent.mean()).backward()  # type: ignore[no-untyped-call]
+    flat.flat.grad.fill_(7.0)  # type: ignore[union-attr]  # overwritten, not added to
+    logp2, _, v2, cache = net.forward_cached(obs, actions)
+    _, g_ratio = clipped_surrogate_loss_grad(logp2.exp(), adv, 0.2)
+    _, g_v = value_loss_grad(v2, v2, ret, None)
+    net.backward_cached(cache, g_ratio * logp2.exp(), -0.01 / n, 0.5 * g_v)
+    for p, e in zip(net.parameters(), ref.parameters(), strict=True):
+        torch.testing.assert_close(p.grad, e.grad, rtol=1e-5, atol=1e-6)
+        # written into the flat gradient, not into tensors of their own
+        assert p.grad.untyped_storage().data_ptr() == flat.flat.grad.data_ptr()  # type: ignore[union-attr]

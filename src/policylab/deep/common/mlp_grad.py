@@ -16,12 +16,18 @@ kernel differs: tanh is NumPy's, applied in place to the tensor's memory, becaus
 torch's CPU tanh costs about 20 times as much on a (256, 64) batch on the AVX-512
 machine of the benchmarks (73 us against 3.3 us); both are accurate to a few units in
 the last place, so results agree with the autograd path to float rounding.
-:func:`mlp_layers` finds such a chain in a module; networks it does not recognise
-(convolutions, one-hot inputs) keep autograd.
+
+:class:`ChainPasses` is the one implementation of these passes, used by every learner
+(DQN's Q-network, PPO's actor and critic, the SAC and TD3 actors); it runs each layer as
+one product on its parameters held as a [W^T; b] block (:class:`FlatParameters` with
+``chain``). :func:`mlp_layers` finds such a chain in a module; networks it does not
+recognise (convolutions, one-hot inputs) keep autograd. :class:`NumpyMLP` is the forward
+pass in NumPy, for acting on a few observations.
 """
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from typing import Any
 
@@ -37,10 +43,12 @@ __all__ = [
     "FlatParameters",
     "LinearChain",
     "NumpyMLP",
+    "Part",
     "activation_backward",
+    "as_one_tensor",
     "fused_adam_step",
-    "mlp_backward",
-    "mlp_forward",
+    "linear_parts",
+    "match_state_layout",
     "mlp_layers",
 ]
 
@@ -121,43 +129,10 @@ def activation_backward(
     return aten.elu_backward.grad_input(grad, 1.0, 1.0, 1.0, True, h, grad_input=out)  # type: ignore[no-any-return]
 
 
-def mlp_forward(
-    layers: Sequence[nn.Linear], act: str, x: torch.Tensor
-) -> tuple[torch.Tensor, list[torch.Tensor]]:
-    """The MLP's output and every layer's input (what :func:`mlp_backward` needs).
-
-    Runs without building an autograd graph. Returns ``(out, inputs)`` with
-    ``inputs[l]`` the input h_{l} of layer l (``inputs[0]`` is ``x`` flattened).
-    """
-    with torch.no_grad():
-        h = x.reshape(len(x), -1)
-        inputs = []
-        last = len(layers) - 1
-        for i, layer in enumerate(layers):
-            inputs.append(h)
-            h = _affine(h, layer.weight, layer.bias)
-            if i < last:
-                h = _activation(h, act)
-    return h, inputs
-
-
-def _affine(h: torch.Tensor, w: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """The affine map z = h W^T + b, in the orientation BLAS runs fastest.
-
-    A layer with a few outputs (a Q-head over 2-4 actions, a policy head) on a batch
-    runs about twice as fast as (W h^T + b)^T than as h W^T + b (a (128, 256) batch
-    into 3 outputs: 6.5 us against 14 us; 5,000 rows: 190 us against 390 us); the
-    result is made contiguous again.
-    """
-    if 1 < w.shape[0] <= 4 and len(h) >= 32:
-        return torch.addmm(b.unsqueeze(1), w, h.t()).t().contiguous()
-    return torch.addmm(b, h, w.t())
-
-
 class NumpyMLP:
     """An MLP's forward pass in NumPy, for acting on a few observations at a time.
 
-    The same equations as :func:`mlp_forward` (h_l = act(h_{l-1} W_l^T + b_l), no act
+    The same equations as :class:`ChainPasses` (h_l = act(h_{l-1} W_l^T + b_l), no act
     on the last layer), on NumPy views of the parameters' memory, so every optimizer
     step is seen without a copy. For one to a few dozen observations the arithmetic
     takes a few microseconds and torch's per-operation dispatch costs more than it
@@ -203,17 +178,61 @@ class NumpyMLP:
         return h
 
 
-def _weight_grad(g: torch.Tensor, h: torch.Tensor, out: torch.Tensor) -> None:
-    """Write dW = g^T h into ``out``, in the orientation BLAS runs fastest.
+Part = tuple[torch.Tensor, bool]
+"""A parameter that is part of a layer's [W^T; b] block, and whether it is held there
+transposed (an ``nn.Linear`` weight, (out, in), is the block's rows W^T)."""
 
-    A product with few rows and many columns runs several times faster than its
-    transpose for these shapes (a (64, 4) first-layer gradient: 28 us as g^T h, 4 us
-    as (h^T g)^T), so the narrow side goes first.
+
+def linear_parts(layers: Sequence[nn.Linear]) -> list[list[Part]]:
+    """Each Linear layer's parameters as parts of its block [W^T; b]: W transposed, b."""
+    return [[(layer.weight, True), (layer.bias, False)] for layer in layers]
+
+
+def _rows(p: torch.Tensor, transposed: bool) -> torch.Tensor:
+    """The rows a parameter takes in its block: W^T, a bias as one row, or as it is."""
+    if transposed:
+        return p.mT
+    return p[None] if p.dim() == 1 else p
+
+
+def _block_of(rows: Sequence[torch.Tensor]) -> torch.Tensor | None:
+    """The block [R_1; R_2; ...] (stacked along the second-to-last axis) ``rows`` are views of.
+
+    A block of one network is (n, out), row-major; k stacked networks' blocks (k, n,
+    out) lie in memory as (n, k, out), row j of every network together, so that each
+    part (a (k, rows, out) parameter) is one stretch of memory. None where ``rows`` are
+    not laid out so, one after the other in one tensor's memory.
     """
-    if h.shape[1] < g.shape[1]:
-        out.copy_(torch.mm(h.t(), g).t())
-    else:
-        torch.mm(g.t(), h, out=out)
+    first = rows[0]
+    stack, n_out = first.shape[:-2], first.shape[-1]
+    row = n_out * (stack[0] if stack else 1)  # the memory one row of the block takes
+    stride = (n_out, row, 1) if stack else (row, 1)
+    storage, start, offset = first.untyped_storage().data_ptr(), first.storage_offset(), 0
+    for r in rows:
+        if (
+            r.dtype != first.dtype
+            or r.shape[:-2] != stack
+            or r.shape[-1] != n_out
+            or r.untyped_storage().data_ptr() != storage
+            or r.storage_offset() != start + offset * row
+            or any(
+                a != b for a, b, size in zip(r.stride(), stride, r.shape, strict=True) if size > 1
+            )
+        ):
+            return None
+        offset += r.shape[-2]
+    return first.as_strided((*stack, offset, n_out), stride)
+
+
+def _mm(a: torch.Tensor, b: torch.Tensor, out: torch.Tensor | None = None) -> torch.Tensor:
+    """The product a b, or one per stacked network (a 2-d operand is shared by all)."""
+    if a.dim() == 2 and b.dim() == 2:
+        return torch.mm(a, b, out=out)
+    if a.dim() == 2:
+        a = a.expand(len(b), -1, -1)
+    elif b.dim() == 2:
+        b = b.expand(len(a), -1, -1)
+    return torch.bmm(a, b, out=out)
 
 
 def _block_grad(h: torch.Tensor, g: torch.Tensor, out: torch.Tensor) -> None:
@@ -223,40 +242,10 @@ def _block_grad(h: torch.Tensor, g: torch.Tensor, out: torch.Tensor) -> None:
     (out, in + 1) product, transposed into place, costs about 7.6 us where the
     (in + 1, out) product costs 12.5 (a (128, 257) input, 3 outputs).
     """
-    if 4 * g.shape[1] <= h.shape[1]:
-        out.copy_(torch.mm(g.t(), h).t())
+    if 4 * g.shape[-1] <= h.shape[-1]:
+        out.copy_(_mm(g.mT, h).mT)
     else:
-        torch.mm(h.t(), g, out=out)
-
-
-def mlp_backward(
-    layers: Sequence[nn.Linear], act: str, inputs: Sequence[torch.Tensor], grad_out: torch.Tensor
-) -> None:
-    """Set the ``.grad`` of every weight and bias of the MLP to dL/dtheta.
-
-    A parameter that already has a ``.grad`` gets it overwritten in place (so gradients
-    can live in one flat buffer, see :class:`FlatParameters`); one without gets a new
-    tensor.
-
-    Args:
-        layers: The MLP's Linear layers, as :func:`mlp_layers` gives them.
-        act: Activation name.
-        inputs: Every layer's input, from :func:`mlp_forward`.
-        grad_out: (B, out) dL/d(output).
-    """
-    with torch.no_grad():
-        g = grad_out
-        for i in range(len(layers) - 1, -1, -1):
-            layer, h = layers[i], inputs[i]
-            w, b = layer.weight, layer.bias
-            if b.grad is None:
-                b.grad = torch.empty_like(b)
-            if w.grad is None:
-                w.grad = torch.empty_like(w)
-            torch.sum(g, 0, out=b.grad)
-            _weight_grad(g, h, w.grad)
-            if i > 0:
-                g = activation_backward(torch.mm(g, w), h, act)
+        _mm(h.mT, g, out=out)
 
 
 class FlatParameters:
@@ -269,19 +258,21 @@ class FlatParameters:
     (the same objects, names and shapes in ``state_dict``); only their storage moves.
 
     By default the buffer holds the parameters one after the other. With ``chain``
-    (the Linear layers of a plain MLP, whose weights and biases ``params`` lists in
-    order) it holds each layer as one (in + 1, out) block [W^T; b]: the weight is a
+    (Linear layers whose weight and bias ``params`` lists one right after the other:
+    the layers of one or several plain MLPs) it holds each of those layers as one
+    (in + 1, out) block [W^T; b] in the place of its weight and bias: the weight is a
     transposed view of the block's first rows and the bias its last row, so that
     :class:`ChainPasses` computes z = [h, 1] [W^T; b] and the weight and bias
-    gradients [h, 1]^T dz each in one matrix product.
+    gradients [h, 1]^T dz each in one matrix product. Other parameters (a log std)
+    keep the default layout.
 
     Args:
         params: The parameters; each must be a leaf tensor of float dtype.
-        chain: The Linear layers behind ``params``, for the block layout.
+        chain: The Linear layers to hold as [W^T; b] blocks.
 
     Raises:
-        InvalidArgumentError: If ``chain`` is given and ``params`` are not its layers'
-            weights and biases in order.
+        InvalidArgumentError: If a layer of ``chain`` does not have its weight and then
+            its bias among ``params``.
     """
 
     def __init__(
@@ -289,20 +280,24 @@ class FlatParameters:
     ) -> None:
         self.params = list(params)
         self.chain = list(chain) if chain is not None else None
-        if self.chain is not None:
-            expected = [p for layer in self.chain for p in (layer.weight, layer.bias)]
-            if len(expected) != len(self.params) or any(
-                a is not b for a, b in zip(expected, self.params, strict=False)
-            ):
-                raise InvalidArgumentError(
-                    "FlatParameters: params must be the chain's weights and biases, in order"
-                )
-        sizes = [p.numel() for p in self.params]
         self.offsets: list[int] = []  # where each parameter starts in the concatenation
         offset = 0
-        for n in sizes:
+        for p in self.params:
             self.offsets.append(offset)
-            offset += n
+            offset += p.numel()
+        index = {id(p): i for i, p in enumerate(self.params)}
+        self._layer_of: dict[int, int] = {}  # parameter index -> its layer in chain
+        self._block_start: list[int] = []  # per layer: where its block starts
+        for j, layer in enumerate(self.chain or ()):
+            i = index.get(id(layer.weight), -1)
+            if i < 0 or i + 1 == len(self.params) or self.params[i + 1] is not layer.bias:
+                raise InvalidArgumentError(
+                    "FlatParameters: params must hold each of the chain's weights and biases, "
+                    f"the bias right after its weight (layer {j} of the chain)"
+                )
+            self._layer_of[i] = self._layer_of[i + 1] = j
+            # the block takes the place of the weight and the bias: (in + 1) out elements
+            self._block_start.append(self.offsets[i])
         data = self.from_parameters([p.detach() for p in self.params])
         self.flat = nn.Parameter(data)
         self.flat.grad = torch.zeros_like(data)
@@ -310,23 +305,30 @@ class FlatParameters:
             p.data = self.view(data, i)
             p.grad = self.view(self.flat.grad, i)
 
-    def blocks(self, v: torch.Tensor) -> list[torch.Tensor]:
-        """The (in + 1, out) blocks [W^T; b] of each layer in a flat tensor ``v``."""
+    @classmethod
+    def of_chain(cls, chain: Sequence[nn.Linear]) -> FlatParameters:
+        """The weights and biases of a plain MLP's Linear layers, each layer as one block."""
+        return cls([p for layer in chain for p in (layer.weight, layer.bias)], chain)
+
+    def _block(self, v: torch.Tensor, j: int) -> torch.Tensor:
+        """Layer ``j``'s (in + 1, out) block [W^T; b] in a flat tensor ``v``."""
         assert self.chain is not None
-        out, offset = [], 0
-        for layer in self.chain:
-            n_out, n_in = layer.weight.shape
-            out.append(v[offset : offset + (n_in + 1) * n_out].view(n_in + 1, n_out))
-            offset += (n_in + 1) * n_out
-        return out
+        n_out, n_in = self.chain[j].weight.shape
+        start = self._block_start[j]
+        return v[start : start + (n_in + 1) * n_out].view(n_in + 1, n_out)
+
+    def blocks(self, v: torch.Tensor) -> list[torch.Tensor]:
+        """The (in + 1, out) blocks [W^T; b] of each layer of ``chain`` in a flat tensor ``v``."""
+        return [self._block(v, j) for j in range(len(self.chain or ()))]
 
     def view(self, v: torch.Tensor, i: int) -> torch.Tensor:
         """Parameter ``i``'s view of a flat tensor ``v`` laid out as the buffer."""
         p = self.params[i]
-        if self.chain is None:
+        j = self._layer_of.get(i)
+        if j is None:
             return v[self.offsets[i] : self.offsets[i] + p.numel()].view(p.shape)
-        block = self.blocks(v)[i // 2]
-        return block[:-1].t() if i % 2 == 0 else block[-1]
+        block = self._block(v, j)
+        return block[:-1].t() if p is self.chain[j].weight else block[-1]  # type: ignore[index]
 
     def from_parameters(self, tensors: Sequence[torch.Tensor]) -> torch.Tensor:
         """A flat tensor laid out as the buffer, holding one tensor per parameter."""
@@ -429,13 +431,13 @@ class FlatParameters:
 class ChainPasses:
     """Forward and backward passes of a plain MLP held as [W^T; b] blocks, one product each.
 
-    The equations of :func:`mlp_forward` and :func:`mlp_backward`, with each layer's
-    input extended by a column of ones, h^+ = [h, 1], and its parameters stored as one
-    (in + 1, out) block [W^T; b] (:class:`FlatParameters` with ``chain``):
+    The equations of backpropagation through the MLP (see the module's docstring), with
+    each layer's input extended by a column of ones, h^+ = [h, 1], and its parameters
+    stored as one (in + 1, out) block [W^T; b] (:class:`FlatParameters` with ``chain``):
 
         forward:   z_l = h^+_{l-1} [W_l^T; b_l],   h_l = act(z_l)   (no act on the last)
         backward:  [dW_l^T; db_l] = (h^+_{l-1})^T dz_l,
-                   dz_{l-1} = (dz_l W_l) * act'(z_{l-1})
+                   dz_{l-1} = (dz_l W_l) * act'(z_{l-1}),   dL/dx = dz_1 W_1
 
     so the bias is added inside the product and its gradient (the column sums of dz_l)
     comes out of the weight gradient's product as its last row: one matrix product per
@@ -443,70 +445,319 @@ class ChainPasses:
     product in the orientation the row-major blocks give. The layers' inputs live in
     buffers kept between calls (one set per batch size), so a gradient step allocates
     nothing but its output. The sums run in another order than with a separate bias,
-    so results agree with :func:`mlp_forward` to float rounding.
+    so results agree with autograd's to float rounding.
+
+    Several MLPs of the same shape can be stacked (k, in + 1, out) blocks, such as the
+    twin critics of SAC and TD3: every product is then one batched product over the k
+    networks, which share the input x and have outputs (k, B, out).
+
+    The blocks are found from the parameters at each call, so the passes follow
+    parameters that move (a flat buffer made later, ``.double()``). A layer whose
+    parameters are not views of one block still works: its block is copied for each
+    forward pass, and its gradients copied into ``.grad`` after each backward one. A
+    layer whose parameters have no ``.grad`` gets one laid out as a block.
 
     Args:
-        flat: The network's parameters in the block layout (``FlatParameters(...,
-            chain=layers)``); the gradients are written into ``flat.flat.grad``.
+        layers: The MLP's Linear layers (:func:`mlp_layers`), a :class:`FlatParameters`
+            made with ``chain=`` those layers, or each layer's block as its parts (the
+            parameters in the block's order, see :func:`linear_parts`).
         act: Activation name (tanh, relu or elu).
     """
 
-    def __init__(self, flat: FlatParameters, act: str) -> None:
-        if flat.chain is None:
-            raise InvalidArgumentError("ChainPasses needs FlatParameters made with chain=")
+    def __init__(
+        self,
+        layers: FlatParameters | Sequence[nn.Linear] | Sequence[Sequence[Part]],
+        act: str,
+    ) -> None:
+        if isinstance(layers, FlatParameters):
+            if layers.chain is None:
+                raise InvalidArgumentError("ChainPasses needs FlatParameters made with chain=")
+            layers = layers.chain
         if act not in ("tanh", "relu", "elu"):
             raise InvalidArgumentError(f"activation must be tanh, relu or elu; got {act!r}")
-        assert flat.flat.grad is not None
         self.act = act
-        self.weights = flat.blocks(flat.flat.detach())
-        self.grads = flat.blocks(flat.flat.grad)
-        self._buffers: dict[int, tuple[list[torch.Tensor], list[torch.Tensor]]] = {}
+        self.parts: list[list[Part]] = [
+            linear_parts([layer])[0] if isinstance(layer, nn.Linear) else list(layer)
+            for layer in layers
+        ]
+        self._firsts = [layer[0][0] for layer in self.parts]  # moved with their layer
+        self._weights: tuple[list[int], list[torch.Tensor | None], bool] = ([], [], False)
+        self._grads: tuple[list[int], list[torch.Tensor | None]] = ([], [])
+        self._buffers: dict[tuple[Any, ...], tuple[list[torch.Tensor], ...]] = {}
+        self._scratch: dict[tuple[Any, ...], tuple[list[torch.Tensor], ...]] = {}
         self._last: tuple[torch.Tensor, list[torch.Tensor], list[torch.Tensor]] | None = None
+        self._last_weights: list[torch.Tensor] = []
+        self._last_first: int | None = None
 
-    def with_ones(self, x: torch.Tensor) -> torch.Tensor:
-        """[x, 1]: a batch of inputs (flattened) with a column of ones appended."""
-        x = x.reshape(len(x), -1)
-        return torch.cat([x, torch.ones(len(x), 1, dtype=x.dtype)], dim=1)
+    @staticmethod
+    def with_ones(*x: torch.Tensor) -> torch.Tensor:
+        """[x, 1]: a batch of inputs (flattened; several side by side) and a column of ones."""
+        cols = [t.reshape(len(t), -1) for t in x]
+        if len(cols) == 1:
+            return torch.constant_pad_nd(cols[0], (0, 1), 1.0)
+        return torch.cat([*cols, torch.ones(len(cols[0]), 1, dtype=cols[0].dtype)], dim=1)
 
-    def _layer_buffers(self, batch: int) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
-        """Per hidden layer: its output [h, 1] (ones in the last column) and dL/dz."""
-        if batch not in self._buffers:
-            widths, dtype = [w.shape[1] for w in self.weights[:-1]], self.weights[0].dtype
-            outs = [torch.ones(batch, n + 1, dtype=dtype) for n in widths]
-            grads = [torch.empty(batch, n, dtype=dtype) for n in widths]
-            self._buffers[batch] = (outs, grads)
-        return self._buffers[batch]
+    def _weight_blocks(self) -> list[torch.Tensor]:
+        """Each layer's block: a view of its parameters where they are laid out so.
+
+        Found again when the memory of a layer's first parameter moved (parameters move
+        together: into a flat buffer, by ``.double()``).
+        """
+        ptrs = [p.data_ptr() for p in self._firsts]
+        if ptrs != self._weights[0]:
+            views = [_block_of([_rows(p.detach(), t) for p, t in layer]) for layer in self.parts]
+            self._weights = (ptrs, views, all(v is not None for v in views))
+        if self._weights[2]:
+            return self._weights[1]  # type: ignore[return-value]
+        return [
+            torch.cat([_rows(p.detach(), t) for p, t in layer], -2) if v is None else v
+            for layer, v in zip(self.parts, self._weights[1], strict=True)
+        ]
+
+    def _grad_blocks(self) -> list[torch.Tensor | None]:
+        """Each layer's gradient block where its parameters' ``.grad`` is laid out so."""
+        ptrs = [0 if p.grad is None else p.grad.data_ptr() for p in self._firsts]
+        if ptrs != self._grads[0]:
+            views: list[torch.Tensor | None] = []
+            for layer in self.parts:
+                grads = [p.grad for p, _ in layer]
+                views.append(
+                    None
+                    if any(g is None for g in grads)
+                    else _block_of([_rows(g, t) for g, (_, t) in zip(grads, layer, strict=True)])  # type: ignore[arg-type]
+                )
+            self._grads = (ptrs, views)
+        return self._grads[1]
+
+    def _set_grads(self, i: int, block: torch.Tensor) -> None:
+        """Give layer ``i``'s parameters their gradients from its gradient block.
+
+        A parameter without ``.grad`` gets a view of ``block`` where the parameters are
+        views of a block themselves (a gradient then lies in memory as its parameter,
+        which a fused optimizer needs), else a copy laid out as the parameter; one with
+        a ``.grad`` gets it overwritten.
+        """
+        start, views = 0, self._weights[1][i] is not None
+        for p, transposed in self.parts[i]:
+            rows = _rows(p, transposed).shape[-2]
+            value = block[..., start : start + rows, :]
+            if transposed:
+                value = value.mT
+            elif value.shape != p.shape:  # a bias (out,) from its row (1, out)
+                value = value[0]
+            if p.grad is not None:
+                p.grad.copy_(value)
+            else:
+                p.grad = value if views else torch.empty_like(p).copy_(value)
+            start += rows
+
+    def _layer_buffers(
+        self, batch: int, dtype: torch.dtype, stack: tuple[int, ...], keep: bool
+    ) -> tuple[list[torch.Tensor], ...]:
+        """Per hidden layer: its output [h, 1] (ones in the last column) and [dL/dz, *].
+
+        Kept between calls: for the passes of a gradient step one set per batch size,
+        for a forward pass alone (whose batch sizes may vary from call to call) the
+        outputs of the last size only. ``stack`` is (k,) for k stacked networks, else ().
+        """
+        key = (batch, dtype, *stack)
+        have = self._buffers.get(key) if keep else self._scratch.get(key)
+        if have is None:
+            widths = [layer[0][0].shape[0 if layer[0][1] else -1] for layer in self.parts[:-1]]
+            outs = [torch.ones(*stack, batch, n + 1, dtype=dtype) for n in widths]
+            if not keep:
+                self._scratch = {key: (outs,)}
+                return (outs,)
+            grads = [torch.empty(*stack, batch, n + 1, dtype=dtype) for n in widths]
+            self._buffers[key] = have = (outs, grads)
+        return have
 
     @torch.no_grad()
-    def forward(self, x_ones: torch.Tensor) -> torch.Tensor:
+    def forward(
+        self, x_ones: torch.Tensor, keep: bool = True, first: int | None = None
+    ) -> torch.Tensor:
         """The network's output for inputs [x, 1] (:meth:`with_ones`).
 
-        Keeps what :meth:`backward` needs, until the next call.
+        Args:
+            x_ones: (B, in + 1) inputs with a column of ones.
+            keep: Keep the layers' outputs for :meth:`backward` (a gradient step),
+                until the next call; without, nothing is kept.
+            first: Of stacked networks, run only the first ``first`` ones.
+
+        Returns:
+            (B, out), or (k, B, out) for k stacked networks.
         """
-        outs, grads = self._layer_buffers(len(x_ones))
+        weights = self._weight_blocks()
+        if first is not None:
+            weights = [w[:first] for w in weights]
+        stack = tuple(weights[0].shape[:-2])
+        bufs = self._layer_buffers(len(x_ones), x_ones.dtype, stack, keep)
         h = x_ones
-        for block, out in zip(self.weights[:-1], outs, strict=True):
-            _activation(torch.mm(h, block, out=out[:, :-1]), self.act)
+        whole = self.act != "tanh"  # ReLU and ELU keep the ones: act(1) = 1
+        for block, out in zip(weights[:-1], bufs[0], strict=True):
+            z = _mm(h, block, out=out[..., :-1])
+            _activation(out if whole else z, self.act)  # a whole buffer runs faster
             h = out
-        self._last = (x_ones, outs, grads)
-        return torch.mm(h, self.weights[-1])
+        if keep:
+            self._last = (x_ones, bufs[0], bufs[1])
+            self._last_weights, self._last_first = weights, first
+        return _mm(h, weights[-1])
 
     @torch.no_grad()
-    def backward(self, grad_out: torch.Tensor) -> None:
-        """Write dL/dtheta of the last :meth:`forward`'s batch into the flat gradient.
+    def backward(
+        self,
+        grad_out: torch.Tensor,
+        rows: int | None = None,
+        param_grads: bool = True,
+        input_grad: slice | None = None,
+    ) -> torch.Tensor | None:
+        """Backpropagate dL/d(output) of the last :meth:`forward` with ``keep``.
 
         Args:
-            grad_out: (B, out) dL/d(output).
+            grad_out: (B, out) dL/d(output), or (k, B, out) for k stacked networks.
+            rows: Backpropagate only the first ``rows`` rows of the forward pass's batch
+                (B of them); default all.
+            param_grads: Write dL/dtheta into the parameters' ``.grad``, overwriting
+                it; False where the network is held constant (a critic in the actor's
+                loss), whose weight gradients are then never computed.
+            input_grad: Also return dL/dx for these columns of x (summed over stacked
+                networks), (B, columns).
+
+        Returns:
+            dL/dx, or None without ``input_grad``.
         """
         assert self._last is not None, "backward needs a forward pass first"
+        if param_grads and self._last_first is not None:
+            raise InvalidArgumentError(
+                "ChainPasses.backward: a forward pass over the first stacked networks only "
+                "has no parameter gradients; pass param_grads=False"
+            )
         x_ones, outs, grads = self._last
+        if rows is not None:
+            x_ones = x_ones[:rows]
+            outs, grads = [h[..., :rows, :] for h in outs], [g[..., :rows, :] for g in grads]
+        weights = self._last_weights
+        targets = self._grad_blocks() if param_grads else [None] * len(weights)
         inputs = [x_ones, *outs]
         g = grad_out
-        for i in range(len(self.weights) - 1, -1, -1):
-            _block_grad(inputs[i], g, self.grads[i])
-            if i > 0:
-                dh = torch.mm(g, self.weights[i][:-1].t(), out=grads[i - 1])
-                g = activation_backward(dh, outs[i - 1][:, :-1], self.act, out=dh)
+        for i in range(len(weights) - 1, -1, -1):
+            if param_grads:
+                target = targets[i]
+                if target is None:  # not laid out as a block: computed here, then set
+                    target = torch.empty_like(weights[i])  # laid out as the block
+                    _block_grad(inputs[i], g, target)
+                    self._set_grads(i, target)
+                else:
+                    _block_grad(inputs[i], g, target)
+            if i > 0:  # dz [W; b]^T = [dh, dz b]: the last column is left unused, so that
+                # act' runs over whole buffers (at the ones column it multiplies by 1 or 0)
+                dh = _mm(g, weights[i].mT, out=grads[i - 1])
+                g = activation_backward(dh, outs[i - 1], self.act, out=dh)[..., :-1]
+        if input_grad is None:
+            return None
+        dx = _mm(g, weights[0][..., input_grad, :].mT)
+        return dx.sum(0) if dx.dim() == 3 else dx
+
+
+def _whole(tensors: Sequence[torch.Tensor]) -> torch.Tensor | None:
+    """A 1-d tensor over the memory ``tensors`` share, where they tile it exactly, else None.
+
+    Each tensor must be dense (its elements one stretch of memory, in any order of the
+    axes) and the stretches must follow one another from the memory's start to its end.
+    """
+    first = tensors[0]
+    storage, size = first.untyped_storage(), first.element_size()
+    spans = []
+    for t in tensors:
+        if t.untyped_storage().data_ptr() != storage.data_ptr() or t.dtype != first.dtype:
+            return None
+        span = 1 + sum((n - 1) * s for n, s in zip(t.shape, t.stride(), strict=True) if n > 0)
+        if span != t.numel():
+            return None
+        spans.append((t.storage_offset(), t.numel()))
+    end = 0
+    for start, n in sorted(spans):
+        if start != end:
+            return None
+        end += n
+    if end * size != storage.nbytes():
+        return None
+    whole: torch.Tensor = first.new_empty(0).set_(storage, 0, (end,))  # type: ignore[call-overload]
+    return whole
+
+
+@torch.no_grad()
+def match_state_layout(optimizer: torch.optim.Optimizer) -> None:
+    """Lay each per-parameter tensor of ``optimizer``'s state out in memory as its parameter.
+
+    A fused Adam walks a parameter, its gradient and its moments as one stretch of
+    memory each, so they must share one layout: a state loaded from a checkpoint written
+    with a layer's own tensors (row-major moments) under a parameter that is a
+    transposed view of a [W^T; b] block would be read in the wrong order. Where a
+    group's parameters tile one tensor's memory (views of the blocks of one network),
+    its moments are moved into one tensor each laid out alike, so that
+    :func:`fused_adam_step` updates the group as one tensor. The values stay. Call it
+    after ``optimizer.load_state_dict``.
+    """
+    for group in optimizer.param_groups:
+        params = [p for p in group["params"] if p in optimizer.state]
+        if not params:
+            continue
+        whole = _whole(params)
+        first = optimizer.state[params[0]]
+        for key in [k for k, v in first.items() if isinstance(v, torch.Tensor) and v.dim() > 0]:
+            buffer = None if whole is None else torch.empty_like(whole)
+            for p in params:
+                st = optimizer.state[p]
+                value = st[key]
+                if buffer is not None:
+                    view = buffer.as_strided(p.shape, p.stride(), p.storage_offset())
+                    st[key] = view.copy_(value)
+                elif value.stride() != p.stride():
+                    st[key] = torch.empty_like(p).copy_(value)
+
+
+def as_one_tensor(
+    a: Sequence[torch.Tensor], b: Sequence[torch.Tensor]
+) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+    """``a`` and ``b`` as one tensor each, where each tiles one tensor's memory alike.
+
+    That is where a[i] lies at the same place of its memory as b[i] of its own (two
+    networks of one shape laid out as blocks, such as a network and its target copy);
+    else they are returned as they are. An elementwise update of the pairs (a Polyak
+    average) then runs once, over whole tensors.
+    """
+    same = len(a) == len(b) and all(
+        (x.shape, x.storage_offset(), x.stride()) == (y.shape, y.storage_offset(), y.stride())
+        for x, y in zip(a, b, strict=True)
+    )
+    whole_a, whole_b = (_whole(a), _whole(b)) if same else (None, None)
+    if whole_a is None or whole_b is None or len(whole_a) != len(whole_b):
+        return list(a), list(b)
+    return [whole_a], [whole_b]
+
+
+def _flat_group(
+    params: Sequence[torch.Tensor], states: Sequence[dict[str, Any]]
+) -> tuple[torch.Tensor, ...] | None:
+    """A group's parameters, gradients and moments as one tensor each, where they can be.
+
+    That is where each of the four tiles one tensor's memory and every parameter, its
+    gradient and its moments lie at the same place in theirs.
+    """
+    grads = [p.grad for p in params]
+    lists = [params, grads, [s["exp_avg"] for s in states], [s["exp_avg_sq"] for s in states]]
+    for i, p in enumerate(params):
+        where = (p.storage_offset(), p.stride())
+        if any((t[i].storage_offset(), t[i].stride()) != where for t in lists[1:]):
+            return None
+    wholes = [_whole(t) for t in lists]
+    return None if any(w is None for w in wholes) else tuple(wholes)  # type: ignore[arg-type]
+
+
+_FLAT_GROUPS: weakref.WeakKeyDictionary[torch.optim.Optimizer, dict[int, Any]] = (
+    weakref.WeakKeyDictionary()
+)
 
 
 @torch.no_grad()
@@ -521,6 +772,13 @@ def fused_adam_step(optimizer: torch.optim.Optimizer) -> None:
     ``state_dict`` stays what it is. Anything else (a first step, which creates the
     state; AMSGrad, maximize or decoupled weight decay; a non-fused or non-Adam
     optimizer; a tensor learning rate) falls back to ``optimizer.step()``.
+
+    A group whose parameters are views of one tensor's memory (the [W^T; b] blocks of a
+    network), with gradients and moments laid out alike (:func:`match_state_layout`,
+    which the first step runs), is updated as that one tensor: the same elementwise
+    arithmetic, without the kernel's copies of strided views (the kernel's vectorised
+    and scalar loops may round an element differently in the last place, so there the
+    numbers agree with ``optimizer.step()`` to float rounding).
 
     Args:
         optimizer: The optimizer to step.
@@ -542,19 +800,31 @@ def fused_adam_step(optimizer: torch.optim.Optimizer) -> None:
         params = [p for p in g["params"] if p.grad is not None]
         if not all(p in state and "exp_avg" in state[p] for p in params):
             optimizer.step()
+            match_state_layout(optimizer)
             return
         todo.append((g, params))
-    for g, params in todo:
+    cache = _FLAT_GROUPS.setdefault(optimizer, {})
+    for i, (g, params) in enumerate(todo):
         if not params:
             continue
         st = [state[p] for p in params]
         steps = [s["step"] for s in st]
         for step in steps:  # one add_ each: _foreach_add_ costs more for a few tensors
             step.add_(1)
+        tensors: list[list[torch.Tensor]] = [
+            params, [p.grad for p in params], [s["exp_avg"] for s in st],
+            [s["exp_avg_sq"] for s in st],
+        ]  # fmt: skip
+        if len(params) > 1:
+            key = (tuple(p.data_ptr() for p in params), *(tuple(map(id, t)) for t in tensors[1:]))
+            if key not in cache.get(i, {}):
+                cache[i] = {key: _flat_group(params, st)}
+            flat = cache[i][key]
+            if flat is not None:  # every step tensor holds the same count
+                tensors, steps = [[t] for t in flat], steps[:1]
         beta1, beta2 = g["betas"]
         torch._fused_adam_(
-            params, [p.grad for p in params], [s["exp_avg"] for s in st],
-            [s["exp_avg_sq"] for s in st], [], steps,
+            tensors[0], tensors[1], tensors[2], tensors[3], [], steps,
             amsgrad=False, lr=g["lr"], beta1=beta1, beta2=beta2,
             weight_decay=g["weight_decay"], eps=g["eps"], maximize=False,
             grad_scale=None, found_inf=None,

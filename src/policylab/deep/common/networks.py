@@ -214,6 +214,11 @@ class TwinQNetwork(nn.Module):
     runs about ten times faster than a matrix product with one output column. Weights
     are orthogonal (gain sqrt(2) in hidden layers, 1 at the output), biases zero.
 
+    Each layer's parameters are views of one block [W; b] of both critics (see
+    :meth:`lay_out_blocks`), on which the hand-written passes of
+    :class:`~policylab.deep.common.mlp_grad.ChainPasses` run one batched product per
+    layer and pass.
+
     Args:
         obs_dim: Observation features.
         action_dim: Action dimensions.
@@ -251,6 +256,54 @@ class TwinQNetwork(nn.Module):
         act_cls = activation(act)
         # in place where the activation allows it (its input is no saved tensor)
         self.act = act_cls(inplace=True) if act_cls in (nn.ReLU, nn.ELU) else act_cls()
+        self.lay_out_blocks()
+
+    def block_parts(self) -> list[list[tuple[torch.Tensor, bool]]]:
+        """Each layer's parameters in the order of its block [W; b], (2, in + 1, out).
+
+        The first layer's block is [W_s; W_a; b]; every part is held as it is (not
+        transposed), the form :class:`~policylab.deep.common.mlp_grad.ChainPasses`
+        takes.
+        """
+        ws, bs = list(self.weights), list(self.biases)
+        first = [(ws[0], False), (ws[1], False), (bs[0], False)]
+        return [first, *([(ws[i + 1], False), (bs[i], False)] for i in range(1, len(bs)))]
+
+    @torch.no_grad()
+    def lay_out_blocks(self, grads: bool = False) -> None:
+        """Move each layer's parameters into one block [W; b] of both critics (same values).
+
+        The block (2, in + 1, out) lies in memory as (in + 1, 2, out), so that each
+        parameter is one stretch of memory (which a fused optimizer needs) while both
+        critics' blocks are strided views for one batched product. A copy of the
+        network (``copy.deepcopy``) holds its own tensors until this is called on it.
+
+        Args:
+            grads: Also give the parameters gradients (zero) laid out alike in one
+                tensor, so that an optimizer step can update all of them as one tensor
+                (without, they lose any gradient they have).
+        """
+        layers = self.block_parts()
+        first = layers[0][0][0]
+        flat = first.new_empty(sum(p.numel() for layer in layers for p, _ in layer))
+        grad_flat = torch.zeros_like(flat) if grads else None
+        offset = 0
+        for layer in layers:
+            k, n_out = first.shape[0], layer[0][0].shape[-1]
+            n = sum(p.shape[-2] for p, _ in layer)
+            block = flat[offset : offset + n * k * n_out].view(n, k, n_out).permute(1, 0, 2)
+            row = 0
+            for p, _ in layer:
+                view = block[:, row : row + p.shape[-2]]
+                view.copy_(p)
+                p.data = view
+                p.grad = (
+                    None
+                    if grad_flat is None
+                    else grad_flat.as_strided(view.shape, view.stride(), view.storage_offset())
+                )
+                row += p.shape[-2]
+            offset += n * k * n_out
 
     def forward(
         self,

@@ -28,8 +28,8 @@ from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import NStepWindow, ReplayBatch, ReplayBuffer
 from policylab.deep.common.checkpoint import to_numpy_tree
 from policylab.deep.common.config import check_replay_settings, option
-from policylab.deep.common.losses import twin_q_loss, twin_q_loss_grad
-from policylab.deep.common.mlp_grad import fused_adam_step
+from policylab.deep.common.losses import polyak_update, twin_q_loss, twin_q_loss_grad
+from policylab.deep.common.mlp_grad import ChainPasses, as_one_tensor, fused_adam_step
 from policylab.deep.common.networks import TwinQNetwork, clip_grad_norm
 from policylab.exceptions import InvalidArgumentError, NonFiniteError
 from policylab.validation import fmt_number
@@ -38,10 +38,8 @@ __all__ = [
     "OffPolicyAgent",
     "OffPolicyConfig",
     "Tensors",
-    "TwinQCache",
     "check_bounded_box",
-    "twin_q_backward",
-    "twin_q_forward",
+    "twin_q_passes",
 ]
 
 Tensors = dict[str, torch.Tensor]
@@ -53,158 +51,15 @@ _ACT_NAMES: dict[type[torch.nn.Module], str] = {
 }
 
 
-@dataclasses.dataclass
-class TwinQCache:
-    """What :func:`twin_q_backward` needs from :func:`twin_q_forward`.
+def twin_q_passes(critic: TwinQNetwork) -> ChainPasses:
+    """The hand-written passes of the twin critics: both MLPs as stacked blocks.
 
-    Attributes:
-        x: (B, obs_dim + action_dim + 1) the first layer's input [s, a, 1].
-        w_in: (k, obs_dim + action_dim + 1, H_1) the first layer [W_s; W_a; b].
-        hidden: Every hidden layer's output act(z_l), each (k, B, H_l).
-        params: The weights then biases the forward pass used.
-        act: Activation name.
+    ``passes.forward(passes.with_ones(s, a))[..., 0]`` is (2, B) Q_1(s, a), Q_2(s, a)
+    (``first=1``: Q_1 alone, (1, B)), and ``passes.backward(dq[..., None], ...)``
+    backpropagates dL/dQ_i: into the critics' ``.grad``, and with ``input_grad`` the
+    action's columns of [s, a] to dL/da = sum_i dz_1,i W_a,i^T.
     """
-
-    x: torch.Tensor
-    w_in: torch.Tensor
-    hidden: list[torch.Tensor]
-    params: list[torch.Tensor]
-    act: str
-
-
-def _act_(h: torch.Tensor, act: str) -> torch.Tensor:
-    """act(h) in place on ``h`` (a fresh output of the forward pass)."""
-    if act == "relu":
-        return torch.relu_(h)
-    if act == "tanh":
-        return torch.tanh_(h)
-    return torch.nn.functional.elu_(h)
-
-
-def _linear_act(h: torch.Tensor, w: torch.Tensor, b: torch.Tensor, act: str) -> torch.Tensor:
-    """act(h W + b) of every critic at once.
-
-    Shapes: h (k, B, H_in), w (k, H_in, H_out), b (k, 1, H_out); the result (k, B, H_out).
-    With ReLU the bias and the activation are one pass over the product (``_add_relu_``)
-    instead of a copy of the bias into the product's output and a ReLU pass after it.
-    """
-    if act == "relu":
-        return torch.ops.aten._add_relu_(torch.bmm(h, w), b)  # type: ignore[no-any-return]
-    return _act_(torch.baddbmm(b, h, w), act)
-
-
-def _act_backward_(grad: torch.Tensor, h: torch.Tensor, act: str) -> torch.Tensor:
-    """dL/dz = dL/dh * act'(z) from the output h = act(z), in place on ``grad``.
-
-    ``grad`` is a fresh tensor of the backward pass; the kernels are those of autograd's
-    own backward, writing into it instead of a new output tensor.
-    """
-    aten = torch.ops.aten
-    if act == "relu":
-        return aten.threshold_backward.grad_input(grad, h, 0, grad_input=grad)  # type: ignore[no-any-return]
-    if act == "tanh":
-        return aten.tanh_backward.grad_input(grad, h, grad_input=grad)  # type: ignore[no-any-return]
-    return aten.elu_backward.grad_input(grad, 1.0, 1.0, 1.0, True, h, grad_input=grad)  # type: ignore[no-any-return]
-
-
-@torch.no_grad()
-def twin_q_forward(
-    critic: TwinQNetwork,
-    obs: torch.Tensor,
-    actions: torch.Tensor,
-    params: Sequence[torch.Tensor] | None = None,
-) -> tuple[torch.Tensor, TwinQCache]:
-    """(2, B) Q_1(s, a), Q_2(s, a) without autograd, and what their backward pass needs.
-
-    The same arithmetic as :meth:`TwinQNetwork.forward` (one product [s, a, 1] [W_s;
-    W_a; b] for the first layer, one batched product per hidden layer), with the
-    one-output layer as one matrix-vector product per critic; ``params`` as there (e.g.
-    first-axis slices ``[:1]`` for Q_1 alone, shape (1, B)). Passing the critic's own
-    parameters as a list kept by the caller saves collecting them on every call.
-    """
-    ps: list[torch.Tensor] = list(critic.parameters() if params is None else params)
-    act = _ACT_NAMES[type(critic.act)]
-    n = len(ps) // 2
-    ws, bs = ps[: n + 1], ps[n + 1 :]
-    k = len(ws[0])
-    x = torch.cat([obs.reshape(len(obs), -1), actions, obs.new_ones((len(obs), 1))], 1)
-    w_in = torch.cat([ws[0], ws[1], bs[0]], 1)
-    h = _act_(torch.bmm(x.unsqueeze(0).expand(k, -1, -1), w_in), act)
-    hidden = [h]
-    for i in range(1, n - 1):
-        h = _linear_act(h, ws[i + 1], bs[i], act)
-        hidden.append(h)
-    q = h.new_empty((k, len(obs)))
-    w_out, b_out = ws[n].reshape(k, -1), bs[n - 1].reshape(k)
-    for i in range(k):  # Q_i = h_n w + b, a matrix-vector product with the bias added in
-        torch.addmv(b_out[i], h[i], w_out[i], out=q[i])
-    return q, TwinQCache(x, w_in, hidden, ps, act)
-
-
-def _grad_buffer(p: torch.Tensor) -> torch.Tensor:
-    """``p.grad``, created (uninitialised) if ``p`` has none; it is then overwritten."""
-    if p.grad is None:
-        p.grad = torch.empty_like(p)
-    return p.grad
-
-
-@torch.no_grad()
-def twin_q_backward(
-    cache: TwinQCache, dq: torch.Tensor, param_grads: bool = True, action_grad: bool = False
-) -> torch.Tensor | None:
-    """Backpropagate dL/dQ through the twin critics by hand (no autograd graph).
-
-    With z_l = h_{l-1} W_l + b_l, h_l = act(z_l) and Q = h_n w + b per critic:
-
-        dw = sum_batch dQ h_n,  db = sum_batch dQ,  dh_n = dQ w^T,
-        dz_l = dh_l * act'(z_l),  dW_l = h_{l-1}^T dz_l,  db_l = sum_batch dz_l,
-        dh_{l-1} = dz_l W_l^T,
-
-    and for the first layer dW_in = [s, a, 1]^T dz_1 (the rows of W_s, W_a and b), and
-    dL/da = sum_i dz_1 W_a^T. The same products autograd runs, without its graph; the
-    activations' derivatives are applied in place on the products' outputs.
-
-    Args:
-        cache: From :func:`twin_q_forward`.
-        dq: (k, B) dL/dQ_i(s_b, a_b).
-        param_grads: Write dL/dtheta into the ``.grad`` of the parameters the forward
-            pass used (overwriting it); False for an actor's loss, whose critics are
-            held constant.
-        action_grad: Also return dL/da, (B, action_dim).
-
-    Returns:
-        dL/da, or None without ``action_grad``.
-    """
-    ps, act, hidden = cache.params, cache.act, cache.hidden
-    n = len(ps) // 2
-    ws, bs = ps[: n + 1], ps[n + 1 :]
-    k = len(ws[0])
-    h = hidden[-1]
-    if param_grads:
-        torch.sum(dq, 1, keepdim=True, out=_grad_buffer(bs[n - 1]).view(k, 1))
-        out = _grad_buffer(ws[n]).view(k, 1, -1)
-        torch.bmm(dq.unsqueeze(1), h, out=out)
-    # dh_n = dQ w^T as a batched outer product, then act' in place
-    g = _act_backward_(torch.bmm(dq.unsqueeze(-1), ws[n].reshape(k, 1, -1)), h, act)
-    for i in range(len(hidden) - 2, -1, -1):  # the layer after hidden[i]: ws[i + 2], bs[i + 1]
-        h_in = hidden[i]
-        if param_grads:
-            torch.sum(g, 1, keepdim=True, out=_grad_buffer(bs[i + 1]))
-            torch.bmm(h_in.transpose(1, 2), g, out=_grad_buffer(ws[i + 2]))
-        g = _act_backward_(torch.bmm(g, ws[i + 2].transpose(1, 2)), h_in, act)
-    if param_grads:
-        d_in = torch.bmm(cache.x.t().unsqueeze(0).expand(k, -1, -1), g)
-        n_obs, n_act = ws[0].shape[1], ws[1].shape[1]
-        _grad_buffer(ws[0]).copy_(d_in[:, :n_obs])
-        _grad_buffer(ws[1]).copy_(d_in[:, n_obs : n_obs + n_act])
-        _grad_buffer(bs[0]).copy_(d_in[:, n_obs + n_act :])
-    if not action_grad:
-        return None
-    w_act = ws[1]  # (k, action_dim, H_1): dL/da = sum_i dz_1,i W_a,i^T
-    grad_a = torch.mm(g[0], w_act[0].t())
-    for i in range(1, k):
-        grad_a.addmm_(g[i], w_act[i].t())
-    return grad_a
+    return ChainPasses(critic.block_parts(), _ACT_NAMES[type(critic.act)])
 
 
 @dataclasses.dataclass
@@ -319,12 +174,33 @@ class OffPolicyAgent(Agent):
             self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, self.torch_gen
         )
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        self.critic_target.lay_out_blocks()
+        self.critic.lay_out_blocks(grads=True)  # one tensor for the optimizer's step
+        self._critic_passes = twin_q_passes(self.critic)
+        self._target_passes = twin_q_passes(self.critic_target)
         # the parameter lists the updates pass around, collected once
         self._critic_params = list(self.critic.parameters())
         self._target_params = list(self.critic_target.parameters())
+        self._polyak_operands: dict[
+            tuple[int, int], tuple[list[torch.Tensor], list[torch.Tensor]]
+        ] = {}
         self.critic_optimizer = torch.optim.Adam(
             self._critic_params, lr=cfg.learning_rate, fused=True
         )
+
+    def _polyak_update(
+        self, target: Sequence[torch.Tensor], online: Sequence[torch.Tensor]
+    ) -> None:
+        """The Polyak average theta' <- tau theta + (1 - tau) theta' of a network's target.
+
+        As one tensor each where both are laid out alike as blocks (:func:`as_one_tensor`,
+        found again when their memory moved, as in a copy of the agent).
+        """
+        key = (target[0].data_ptr(), online[0].data_ptr())
+        whole = self._polyak_operands.get(key)
+        if whole is None:
+            whole = self._polyak_operands[key] = as_one_tensor(target, online)
+        polyak_update(whole[0], whole[1], self.config.tau)
 
     @staticmethod
     def _batch_tensors(batch: ReplayBatch) -> tuple[torch.Tensor, ...]:
@@ -340,15 +216,16 @@ class OffPolicyAgent(Agent):
         """One Adam step of the twin critics on their loss toward ``targets``.
 
         The critics' forward and backward passes are written out by hand
-        (:func:`twin_q_forward`, :func:`twin_q_backward`), from the loss's own gradient
+        (:func:`twin_q_passes`), from the loss's own gradient
         (:func:`~policylab.deep.common.losses.twin_q_loss_grad`): no autograd graph.
 
         Returns:
             The loss and (2, B) Q_1(S, A), Q_2(S, A), both detached.
         """
-        q, cache = twin_q_forward(self.critic, obs, actions, self._critic_params)
+        passes = self._critic_passes
+        q = passes.forward(passes.with_ones(obs, actions))[..., 0]
         loss = twin_q_loss(q, targets)
-        twin_q_backward(cache, twin_q_loss_grad(q, targets))
+        passes.backward(twin_q_loss_grad(q, targets).unsqueeze(-1))
         self._clip_grads(self._critic_params)
         fused_adam_step(self.critic_optimizer)
         return loss, q

@@ -126,7 +126,7 @@ class DQN(Agent):
         self._flat: FlatParameters | None = None
         self._passes: ChainPasses | None = None
         if chain is not None:
-            self._flat = FlatParameters([p for m in chain for p in (m.weight, m.bias)], chain)
+            self._flat = FlatParameters.of_chain(chain)
             self._passes = ChainPasses(self._flat, cfg.activation)
         self._params = [self._flat.flat] if self._flat else list(self.q.parameters())
         self.optimizer = torch.optim.Adam(self._params, lr=cfg.learning_rate, fused=True)
@@ -146,6 +146,8 @@ class DQN(Agent):
         self._target_q: NDArray[np.float32] | None = None
         target_chain = self.q_target.chain
         self._np_q_target = NumpyMLP(target_chain, cfg.activation) if target_chain else None
+        # the target network's forward passes run on [W^T; b] blocks too
+        self._flat_target = None if target_chain is None else FlatParameters.of_chain(target_chain)
         self._target_q_fresh = np.zeros(cfg.buffer_size, dtype=bool)
 
     @property

@@ -8,7 +8,7 @@ import gymnasium as gym
 import torch
 from torch import nn
 
-from policylab.deep.common.mlp_grad import mlp_forward, mlp_layers
+from policylab.deep.common.mlp_grad import ChainPasses, mlp_layers
 from policylab.deep.common.networks import MLP, build_torso, torso_width
 from policylab.exceptions import InvalidArgumentError
 
@@ -54,16 +54,18 @@ class QNetwork(nn.Module):
         self.act = act
         self.chain = None if dueling else mlp_layers(self.torso, self.head)
         """The Linear layers of a plain MLP Q-network (backpropagated by hand), else None."""
+        self.passes = None if self.chain is None else ChainPasses(self.chain, act)
+        """The forward pass of a plain MLP without autograd, else None."""
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         """Q(s, .) for a batch, shape (B, A).
 
         Under ``torch.no_grad`` or ``torch.inference_mode`` a plain MLP runs by
-        :func:`~policylab.deep.common.mlp_grad.mlp_forward` (the same numbers, without
-        the modules' call overhead).
+        :class:`~policylab.deep.common.mlp_grad.ChainPasses` (the same numbers to float
+        rounding, without the modules' call overhead).
         """
-        if self.chain is not None and not torch.is_grad_enabled():
-            return mlp_forward(self.chain, self.act, obs)[0]
+        if self.passes is not None and not torch.is_grad_enabled():
+            return self.passes.forward(self.passes.with_ones(obs), keep=False)
         h = self.torso(obs)
         if self.dueling:
             adv = self.advantage(h)

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from policylab.deep.common.agent import Agent, BaseConfig
 from policylab.deep.common.buffers import RolloutBuffer
 from policylab.deep.common.config import check, documented, option
-from policylab.deep.common.mlp_grad import FlatParameters, fused_adam_step
+from policylab.deep.common.mlp_grad import ChainPasses, FlatParameters, fused_adam_step
 from policylab.deep.common.networks import clip_grad_norm
 from policylab.deep.common.normalize import RewardScaler
 from policylab.deep.ppo.losses import (
@@ -104,8 +104,14 @@ class PPO(Agent):
             cfg.log_std_init,
             self.torch_gen,
         )
-        # the hand-written update keeps all parameters (and gradients) in one flat tensor
-        self._flat = FlatParameters(list(self.net.parameters())) if self.net.by_hand else None
+        # the hand-written update keeps all parameters (and gradients) in one flat
+        # tensor, each layer of the two MLPs as one [W^T; b] block (see ChainPasses)
+        chains = self.net.chains
+        self._flat = (
+            None
+            if chains is None
+            else FlatParameters(list(self.net.parameters()), [*chains[0], *chains[1]])
+        )
         self._params = [self._flat.flat] if self._flat is not None else list(self.net.parameters())
         self.optimizer = torch.optim.Adam(self._params, lr=cfg.learning_rate, eps=1e-5, fused=True)
         self.buffer = RolloutBuffer(
@@ -169,6 +175,8 @@ class PPO(Agent):
         """n_epochs passes of minibatch Adam steps on the rollout; returns mean metrics."""
         cfg, buf = self.config, self.buffer
         obs = torch.as_tensor(buf.flat("obs"))
+        if self.net.by_hand:  # [S, 1] for the hand-written passes, once for the rollout
+            obs = ChainPasses.with_ones(obs)
         actions = torch.as_tensor(buf.flat("actions"))
         # the per-step scalars side by side, so a minibatch takes them in one gather
         scalars = torch.as_tensor(
@@ -193,7 +201,7 @@ class PPO(Agent):
                 else:
                     old_logp, old_v, adv, returns, mb_obs, mb_actions = whole
                 if self.net.by_hand:  # every gradient is overwritten: no zero_grad
-                    logp, entropy, v, cache = self.net.forward_cached(mb_obs, mb_actions)
+                    logp, entropy, v, cache = self.net.forward_cached(mb_obs, mb_actions, True)
                     log_ratio = logp - old_logp
                     ratio = log_ratio.exp()
                     pg_loss, g_ratio = clipped_surrogate_loss_grad(ratio, adv, cfg.clip_range)
@@ -234,7 +242,8 @@ class PPO(Agent):
     def _state_tensors(self, training_state: bool) -> dict[str, Any]:
         state: dict[str, Any] = {"net": self.net.state_dict()}
         if training_state:
-            state["optimizer"] = self.optimizer.state_dict()
+            opt = self.optimizer.state_dict()
+            state["optimizer"] = self._flat.state_for_checkpoint(opt) if self._flat else opt
             if self.reward_scaler is not None:
                 state["reward_scaler"] = self.reward_scaler.rms.state_dict()
         return state
@@ -245,7 +254,7 @@ class PPO(Agent):
         self.net.load_state_dict(tensors["net"])
         if "optimizer" in tensors:
             state = tensors["optimizer"]
-            if self._flat is not None:  # a checkpoint from before the flat parameters
+            if self._flat is not None:  # per parameter (older checkpoints) or concatenated
                 state = self._flat.state_from_per_parameter(state)
             self.optimizer.load_state_dict(state)
         if "reward_scaler" in tensors and self.reward_scaler is not None:

@@ -11,7 +11,7 @@ import torch
 from numpy.typing import NDArray
 from torch import nn
 
-from policylab.deep.common.mlp_grad import NumpyMLP, mlp_backward, mlp_forward, mlp_layers
+from policylab.deep.common.mlp_grad import ChainPasses, NumpyMLP, mlp_layers
 from policylab.deep.common.networks import build_torso, init_layer, is_image_space, torso_width
 from policylab.exceptions import InvalidArgumentError
 
@@ -19,8 +19,9 @@ __all__ = ["ActorCritic"]
 
 _LOG_2PI = math.log(2 * math.pi)
 
-Cache = tuple[list[torch.Tensor], list[torch.Tensor], tuple[torch.Tensor, ...]]
-"""What :meth:`ActorCritic.forward_cached` keeps for :meth:`ActorCritic.backward_cached`."""
+Cache = tuple[torch.Tensor, ...]
+"""What :meth:`ActorCritic.forward_cached` keeps for :meth:`ActorCritic.backward_cached`
+(with what the two MLPs' :class:`~policylab.deep.common.mlp_grad.ChainPasses` keep)."""
 
 
 class ActorCritic(nn.Module):
@@ -73,23 +74,32 @@ class ActorCritic(nn.Module):
         # plain MLPs (vector observations) are backpropagated by hand: see by_hand
         actor = None if self.shared else mlp_layers(self.actor_torso, self.policy_head)
         critic = None if self.shared else mlp_layers(self.critic_torso, self.value_head)
-        self._chains = None if actor is None or critic is None else (actor, critic)
+        self.chains = None if actor is None or critic is None else (actor, critic)
+        """The Linear layers of the actor's and the critic's MLPs (by hand), else None."""
+        self._passes = (
+            None
+            if self.chains is None
+            else (ChainPasses(self.chains[0], act), ChainPasses(self.chains[1], act))
+        )
         self._numpy = (
             None
-            if self._chains is None
-            else (NumpyMLP(self._chains[0], act), NumpyMLP(self._chains[1], act))
+            if self.chains is None
+            else (NumpyMLP(self.chains[0], act), NumpyMLP(self.chains[1], act))
         )
 
     def value(self, obs: torch.Tensor) -> torch.Tensor:
         """V(s) for a batch, shape (B,)."""
-        if self._chains is not None and not torch.is_grad_enabled():
-            return mlp_forward(self._chains[1], self.act, obs)[0].squeeze(-1)
+        if self._passes is not None and not torch.is_grad_enabled():
+            critic = self._passes[1]
+            return critic.forward(critic.with_ones(obs), keep=False).squeeze(-1)
         v: torch.Tensor = self.value_head(self.critic_torso(obs)).squeeze(-1)
         return v
 
     def _policy_out(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        if self._chains is not None and not torch.is_grad_enabled():
-            return mlp_forward(self._chains[0], self.act, obs)[0], self.value(obs)
+        if self._passes is not None and not torch.is_grad_enabled():
+            actor, critic = self._passes
+            x = actor.with_ones(obs)
+            return actor.forward(x, keep=False), critic.forward(x, keep=False).squeeze(-1)
         if self.shared:
             h = self.actor_torso(obs)
             return self.policy_head(h), self.value_head(h).squeeze(-1)
@@ -116,8 +126,9 @@ class ActorCritic(nn.Module):
         """Actions drawn from pi(. | s) (or its mode), their log-probabilities, and V(s).
 
         Under ``torch.no_grad`` or ``torch.inference_mode`` two MLPs run by
-        :func:`~policylab.deep.common.mlp_grad.mlp_forward`, the forward pass of the
-        hand-written update (the same numbers, without the modules' call overhead).
+        :class:`~policylab.deep.common.mlp_grad.ChainPasses`, the forward pass of the
+        hand-written update (the same numbers to float rounding, without the modules'
+        call overhead).
         """
         out, v = self._policy_out(obs)
         if self.continuous:
@@ -180,20 +191,23 @@ class ActorCritic(nn.Module):
     @property
     def by_hand(self) -> bool:
         """Whether :meth:`forward_cached` and :meth:`backward_cached` apply (two MLPs)."""
-        return self._chains is not None
+        return self.chains is not None
 
     def forward_cached(
-        self, obs: torch.Tensor, actions: torch.Tensor
+        self, obs: torch.Tensor, actions: torch.Tensor, ones: bool = False
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, Cache]:
         """:meth:`evaluate_actions` without autograd, keeping what the backward pass needs.
 
         Returns ``(log_prob, entropy, value, cache)``; pass ``cache`` to
-        :meth:`backward_cached`. Only for networks with :attr:`by_hand`.
+        :meth:`backward_cached` (before the next call: the MLPs' passes keep their
+        layers' outputs until then). Only for networks with :attr:`by_hand`. With
+        ``ones`` the observations come flattened with a column of ones, [s, 1]
+        (:meth:`~policylab.deep.common.mlp_grad.ChainPasses.with_ones`).
         """
-        assert self._chains is not None
-        actor, critic = self._chains
-        out, a_in = mlp_forward(actor, self.act, obs)
-        v, c_in = mlp_forward(critic, self.act, obs)
+        assert self._passes is not None
+        actor, critic = self._passes
+        x = obs if ones else actor.with_ones(obs)
+        out, v = actor.forward(x), critic.forward(x)
         with torch.no_grad():
             if self.continuous:
                 assert self.log_std is not None
@@ -209,7 +223,7 @@ class ActorCritic(nn.Module):
                 logp = log_pi.gather(-1, idx).squeeze(-1)
                 ent = -(pi * log_pi).sum(-1)
                 extra = (idx, pi, log_pi, ent)
-        return logp, ent, v.squeeze(-1), (a_in, c_in, extra)
+        return logp, ent, v.squeeze(-1), extra
 
     def backward_cached(
         self,
@@ -229,14 +243,13 @@ class ActorCritic(nn.Module):
         Gaussian, z = (a - mu) / sigma:  dlog pi/dmu = z / sigma,
             dlog pi/dlog sigma = z^2 - 1,  dH/dlog sigma = 1 (per dimension).
         """
-        assert self._chains is not None
-        actor, critic = self._chains
-        a_in, c_in, extra = cache
+        assert self._passes is not None
+        actor, critic = self._passes
         with torch.no_grad():
             g = grad_log_prob.unsqueeze(-1)
             if self.continuous:
                 assert self.log_std is not None
-                z, std = extra
+                z, std = cache
                 g_out = g * z / std
                 g_log_std = (g * (z * z - 1.0)).sum(0) + grad_entropy * len(z)
                 if self.log_std.grad is None:
@@ -244,11 +257,11 @@ class ActorCritic(nn.Module):
                 else:
                     self.log_std.grad.copy_(g_log_std)
             else:
-                idx, pi, log_pi, ent = extra
+                idx, pi, log_pi, ent = cache
                 g_out = pi * ((log_pi + ent.unsqueeze(-1)) * -grad_entropy - g)
                 g_out.scatter_add_(-1, idx, g)
-            mlp_backward(actor, self.act, a_in, g_out)
-            mlp_backward(critic, self.act, c_in, grad_value.unsqueeze(-1))
+            actor.backward(g_out)
+            critic.backward(grad_value.unsqueeze(-1))
 
 
 def action_dtype(space: gym.Space[Any]) -> Any:

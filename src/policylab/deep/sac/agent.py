@@ -10,14 +10,18 @@ import torch
 
 from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
-from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
-from policylab.deep.common.mlp_grad import fused_adam_step, mlp_backward, mlp_forward, mlp_layers
+from policylab.deep.common.losses import clipped_double_q_targets
+from policylab.deep.common.mlp_grad import (
+    ChainPasses,
+    FlatParameters,
+    fused_adam_step,
+    match_state_layout,
+    mlp_layers,
+)
 from policylab.deep.common.off_policy import (
     OffPolicyAgent,
     OffPolicyConfig,
     Tensors,
-    twin_q_backward,
-    twin_q_forward,
 )
 from policylab.deep.sac.losses import (
     entropy_coef_loss_grad,
@@ -97,8 +101,8 @@ class SAC(OffPolicyAgent):
     of the alpha step does not change the result.
 
     The update builds no autograd graph: the actor's MLP is backpropagated by
-    :func:`~policylab.deep.common.mlp_grad.mlp_backward`, the critics by
-    :func:`~policylab.deep.common.off_policy.twin_q_backward`, and each loss has its
+    :class:`~policylab.deep.common.mlp_grad.ChainPasses`, the critics by the same
+    passes on their stacked blocks, and each loss has its
     gradient written next to it (``twin_q_loss_grad``, ``sac_actor_loss_grad``,
     ``squashed_gaussian_grad``, ``entropy_coef_loss_grad``); the parameters after an
     update equal those of the same update through autograd, to float rounding. The
@@ -123,10 +127,13 @@ class SAC(OffPolicyAgent):
             self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, g
         )
         self._build_critics()
-        self._actor_params = list(self.actor.parameters())
         layers = mlp_layers(self.actor.net)
         assert layers is not None  # an ActorMLP is a plain MLP
-        self._actor_layers = layers
+        # each layer as one [W^T; b] block (ChainPasses); the actor's optimizer keeps one
+        # tensor per parameter (views of the blocks), as autograd and checkpoints see them
+        FlatParameters.of_chain(layers)
+        self._actor_passes = ChainPasses(layers, cfg.activation)
+        self._actor_params = list(self.actor.parameters())
         lr = cfg.learning_rate
         alpha0, self.learn_alpha = _initial_alpha(cfg.ent_coef)
         self.log_alpha = torch.tensor(math.log(alpha0), requires_grad=self.learn_alpha)
@@ -164,36 +171,35 @@ class SAC(OffPolicyAgent):
         stats: Tensors = {}
         alpha = self.log_alpha.detach().exp()  # alpha before this step
 
-        # Every network's forward and backward pass is written out (mlp_grad for the
-        # actor, twin_q_forward/backward for the critics) and every loss's gradient is
-        # its own tested function: no autograd graph. The policy at S and S' in one pass.
-        features, inputs = mlp_forward(
-            self._actor_layers, cfg.activation, torch.cat([obs, next_obs])
-        )
+        # Every network's forward and backward pass is written out (ChainPasses, for the
+        # critics on their stacked blocks) and every loss's gradient is its own tested
+        # function: no autograd graph. The policy at S and S' in one pass.
+        actor, critic, target = self._actor_passes, self._critic_passes, self._target_passes
+        features = actor.forward(actor.with_ones(torch.cat([obs, next_obs])))
         all_actions, all_log_prob, noise, in_range = self.actor.reparameterised(
             features, self.torch_gen
         )
         actions_pi, log_prob = all_actions[:b], all_log_prob[:b]
 
         # 1. the critics, toward the soft clipped double-Q target
-        next_q = twin_q_forward(self.critic_target, next_obs, all_actions[b:], self._target_params)[
-            0
-        ]
+        next_q = target.forward(target.with_ones(next_obs, all_actions[b:]), keep=False)[..., 0]
         y = clipped_double_q_targets(rewards, discounts, next_q, all_log_prob[b:], alpha)
         critic_loss, q = self._critic_step(obs, actions, y)
 
         # 2. the actor, through the updated critics with their weights held constant:
         # dJ/dQ, then dJ/da = dJ/dQ dQ/da through the critics, then through the squash
-        q_pi, cache = twin_q_forward(self.critic, obs, actions_pi, self._critic_params)
+        q_pi = critic.forward(critic.with_ones(obs, actions_pi))[..., 0]
         actor_loss = sac_actor_loss(log_prob, q_pi, alpha)
         grad_log_prob, grad_q = sac_actor_loss_grad(log_prob, q_pi, alpha)
-        grad_action = twin_q_backward(cache, grad_q, param_grads=False, action_grad=True)
+        grad_action = critic.backward(
+            grad_q.unsqueeze(-1), param_grads=False, input_grad=slice(self.obs_dim, -1)
+        )
         assert grad_action is not None
         grad_mean, grad_log_std = squashed_gaussian_grad(
             actions_pi, noise[:b], grad_action, grad_log_prob
         )
         grad_features = torch.cat([grad_mean, grad_log_std * in_range[:b]], 1)
-        mlp_backward(self._actor_layers, cfg.activation, [h[:b] for h in inputs], grad_features)
+        actor.backward(grad_features, rows=b)
         if self.learn_alpha:
             # 3. alpha (its loss reaches log alpha only: log pi is held constant in it)
             grad_log_alpha = entropy_coef_loss_grad(log_prob, self.target_entropy)
@@ -206,7 +212,7 @@ class SAC(OffPolicyAgent):
         # 4. the target critics
         self.n_updates += 1
         if self.n_updates % cfg.target_update_interval == 0:
-            polyak_update(self._target_params, self._critic_params, cfg.tau)
+            self._polyak_update(self._target_params, self._critic_params)
         stats.update(
             critic_loss=critic_loss,
             actor_loss=actor_loss,
@@ -237,3 +243,5 @@ class SAC(OffPolicyAgent):
         if "actor_optimizer" in tensors:
             self.actor_optimizer.load_state_dict(tensors["actor_optimizer"])
             self.critic_optimizer.load_state_dict(tensors["critic_optimizer"])
+            for optimizer in (self.actor_optimizer, self.critic_optimizer):
+                match_state_layout(optimizer)  # moments laid out as the [W^T; b] blocks

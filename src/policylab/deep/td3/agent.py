@@ -10,20 +10,19 @@ import torch
 
 from policylab.deep.common.buffers import ReplayBatch
 from policylab.deep.common.config import check, documented, option
-from policylab.deep.common.losses import clipped_double_q_targets, polyak_update
+from policylab.deep.common.losses import clipped_double_q_targets
 from policylab.deep.common.mlp_grad import (
+    ChainPasses,
+    FlatParameters,
     activation_backward,
     fused_adam_step,
-    mlp_backward,
-    mlp_forward,
+    match_state_layout,
     mlp_layers,
 )
 from policylab.deep.common.off_policy import (
     OffPolicyAgent,
     OffPolicyConfig,
     Tensors,
-    twin_q_backward,
-    twin_q_forward,
 )
 from policylab.deep.td3.losses import smoothed_target_actions, td3_actor_loss, td3_actor_loss_grad
 from policylab.deep.td3.networks import DeterministicActor
@@ -71,8 +70,8 @@ class TD3(OffPolicyAgent):
        Polyak updates of the target actor and critics.
 
     Each update builds no autograd graph: the actors' MLPs go through
-    :mod:`~policylab.deep.common.mlp_grad`, the critics through
-    :func:`~policylab.deep.common.off_policy.twin_q_backward`, from the losses'
+    :class:`~policylab.deep.common.mlp_grad.ChainPasses`, the critics through the
+    same passes on their stacked blocks, from the losses'
     gradients (``twin_q_loss_grad``, ``td3_actor_loss_grad``); the parameters after an
     update equal those of the same update through autograd, to float rounding.
 
@@ -97,12 +96,18 @@ class TD3(OffPolicyAgent):
         )
         self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)
         self._build_critics()
-        self._actor_params = list(self.actor.parameters())
         layers, target_layers = mlp_layers(self.actor.net), mlp_layers(self.actor_target.net)
         assert layers is not None and target_layers is not None  # ActorMLPs are plain MLPs
-        self._actor_layers, self._target_actor_layers = layers, target_layers
+        # each layer as one [W^T; b] block (ChainPasses); the actor's optimizer keeps one
+        # tensor per parameter (views of the blocks), as autograd and checkpoints see them
+        for chain in (layers, target_layers):
+            FlatParameters.of_chain(chain)
+        self._actor_passes = ChainPasses(layers, cfg.activation)
+        self._target_actor_passes = ChainPasses(target_layers, cfg.activation)
+        self._actor_params = list(self.actor.parameters())
+        self._actor_target_params = list(self.actor_target.parameters())
         self._online = self._actor_params + self._critic_params
-        self._targets = list(self.actor_target.parameters()) + self._target_params
+        self._targets = self._actor_target_params + self._target_params
         self.actor_optimizer = torch.optim.Adam(
             self._actor_params, lr=cfg.learning_rate, fused=True
         )
@@ -127,17 +132,18 @@ class TD3(OffPolicyAgent):
     def _train_step(self, batch: ReplayBatch) -> Tensors:
         cfg = self.config
         obs, actions, rewards, next_obs, discounts = self._batch_tensors(batch)
-        act = cfg.activation
+        actor, target_actor = self._actor_passes, self._target_actor_passes
+        critic, target = self._critic_passes, self._target_passes
 
         # Every forward and backward pass is written out, as in SAC (no autograd graph).
         # 1. the critics, toward the clipped double-Q target of the smoothed target action
         noise = cfg.target_policy_noise * torch.randn(actions.shape, generator=self.torch_gen)
-        target_mu = torch.tanh(mlp_forward(self._target_actor_layers, act, next_obs)[0])
+        target_mu = torch.tanh(target_actor.forward(target_actor.with_ones(next_obs), keep=False))
         next_actions = smoothed_target_actions(target_mu, noise, cfg.target_noise_clip)
         y = clipped_double_q_targets(
             rewards,
             discounts,
-            twin_q_forward(self.critic_target, next_obs, next_actions, self._target_params)[0],
+            target.forward(target.with_ones(next_obs, next_actions), keep=False)[..., 0],
         )
         critic_loss, q = self._critic_step(obs, actions, y)
         self.n_updates += 1
@@ -145,18 +151,20 @@ class TD3(OffPolicyAgent):
 
         # 2. delayed: the actor through Q_1 with the critic's weights constant, then targets
         if self.n_updates % cfg.policy_delay == 0:
-            features, inputs = mlp_forward(self._actor_layers, act, obs)
-            mu = torch.tanh(features)
-            q1, cache = twin_q_forward(self.critic, obs, mu, [p[:1] for p in self._critic_params])
-            grad_mu = twin_q_backward(
-                cache, td3_actor_loss_grad(q1), param_grads=False, action_grad=True
+            mu = torch.tanh(actor.forward(actor.with_ones(obs)))
+            q1 = critic.forward(critic.with_ones(obs, mu), first=1)[..., 0]
+            grad_mu = critic.backward(
+                td3_actor_loss_grad(q1).unsqueeze(-1),
+                param_grads=False,
+                input_grad=slice(self.obs_dim, -1),
             )
             assert grad_mu is not None
             grad_features = activation_backward(grad_mu, mu, "tanh")
-            mlp_backward(self._actor_layers, act, inputs, grad_features)
+            actor.backward(grad_features)
             self._clip_grads(self._actor_params)
             fused_adam_step(self.actor_optimizer)
-            polyak_update(self._targets, self._online, cfg.tau)
+            self._polyak_update(self._actor_target_params, self._actor_params)
+            self._polyak_update(self._target_params, self._critic_params)
             stats["actor_loss"] = td3_actor_loss(q1[0])
         return stats
 
@@ -180,3 +188,5 @@ class TD3(OffPolicyAgent):
         if "actor_optimizer" in tensors:
             self.actor_optimizer.load_state_dict(tensors["actor_optimizer"])
             self.critic_optimizer.load_state_dict(tensors["critic_optimizer"])
+            for optimizer in (self.actor_optimizer, self.critic_optimizer):
+                match_state_layout(optimizer)  # moments laid out as the [W^T; b] blocks

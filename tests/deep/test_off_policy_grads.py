@@ -195,7 +195,11 @@ def test_td3_update_is_the_autograd_update() -> None:
             ref.actor_optimizer.zero_grad()
             actor_loss.backward()
             ref.actor_optimizer.step()
-            polyak_update(ref._targets, ref._online, cfg.tau)
+            polyak_update(
+                ref._actor_target_params + ref._target_params,
+                ref._actor_params + ref._critic_params,
+                cfg.tau,
+            )
             torch.testing.assert_close(stats[i]["actor_loss"], actor_loss.detach())
     assert "actor_loss" in stats[0] or "actor_loss" in stats[1]
     for name in ("actor", "actor_target", "critic", "critic_target"):

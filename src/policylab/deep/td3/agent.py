@@ -106,8 +106,6 @@ class TD3(OffPolicyAgent):
         self._target_actor_passes = ChainPasses(target_layers, cfg.activation)
         self._actor_params = list(self.actor.parameters())
         self._actor_target_params = list(self.actor_target.parameters())
-        self._online = self._actor_params + self._critic_params
-        self._targets = self._actor_target_params + self._target_params
         self.actor_optimizer = torch.optim.Adam(
             self._actor_params, lr=cfg.learning_rate, fused=True
         )

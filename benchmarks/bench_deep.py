@@ -616,8 +616,8 @@ def main() -> None:
         default=None,
         metavar="FILES",
         help="time to solve: run nothing; build the table (and its section, unless "
-        "--no-write) from comma-separated files written by --results. --seeds, "
-        "--first-seed, --envs and --algos then only describe the runs in the notes",
+        "--no-write) from comma-separated files written by --results; the rows and the "
+        "seeds in the notes are those of the saved runs",
     )
     ap.add_argument(
         "--full-budget",
@@ -678,8 +678,7 @@ def main() -> None:
         results: list[Result] = []
         if args.from_results:
             results = [r for f in args.from_results.split(",") for r in load_results(f)]
-            envs = []  # nothing to run
-        for env_id in envs:
+        for env_id in [] if args.from_results else envs:
             for algo in algos:
                 if not zoo_settings(algo, env_id):
                     continue
@@ -704,8 +703,9 @@ def main() -> None:
                         )
         body = table(results, args.full_budget)
         evals = ", ".join(f"{k} every {v:,}" for k, v in EVAL_EVERY.items())
+        seeds = sorted({r.seed for r in results}) or [args.first_seed]
         notes = (
-            f"Seeds {args.first_seed}-{args.first_seed + args.seeds - 1}, each library with "
+            f"Seeds {seeds[0]}-{seeds[-1]}, each library with "
             "its recommended settings "
             "(policylab: `policylab train`'s defaults, `pl.deep.default_config`, the zoo "
             "settings plus `policylab.deep.zoo.TUNED`, which changes nothing for PPO; SB3: "
@@ -728,7 +728,7 @@ def main() -> None:
     load1 = os.getloadavg()
     from _report import load_note, write_section
 
-    if getattr(args, "from_results", None):
+    if args.from_results:
         notes += f" Built from saved runs ({args.from_results}); the runs' load is in their logs."
         command += f" --from-results {args.from_results}"
     else:

@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import write_section
+from _report import machine, processor, write_section
 
 warnings.filterwarnings("ignore")
 
@@ -278,6 +278,7 @@ def per_update(args: argparse.Namespace) -> None:
     import policylab as pl
 
     torch.set_num_threads(1)
+    print(machine())
     print(_load())
     for algo in args.algos:
         kw = dict(_common(args), learning_starts=300, buffer_size=10_000)
@@ -430,7 +431,7 @@ def quality(args: argparse.Namespace) -> None:
                         f.write(json.dumps(dict(
                             env=env_id, algo=algo, lib=lib, seed=seed, steps=steps,
                             episodes=episodes, mean_return=ret, seconds=sec,
-                            commit=_commit(),
+                            commit=_commit(), machine=processor(),
                             finished=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
                         )) + "\n")  # fmt: skip
                 zoo = f"{published[algo]:.0f}" if algo in published else ""

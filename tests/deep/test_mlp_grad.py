@@ -217,6 +217,37 @@ def test_numpy_forward_equals_chain_passes_and_follows_the_parameters(act: str) 
     assert fwd(np.zeros((0, 3), np.float32)).shape == (0, 3)
 
 
+@pytest.mark.parametrize("stacked", [False, True])
+@pytest.mark.parametrize(("rows", "inner", "cols"), [
+    (256, 257, 1), (256, 257, 6), (64, 65, 2), (512, 257, 16), (40, 65, 12),
+    (256, 1, 257), (3, 9, 2), (256, 257, 17), (8, 5, 1),
+])  # fmt: skip
+def test_products_of_every_shape_equal_the_plain_product(
+    stacked: bool, rows: int, inner: int, cols: int
+) -> None:
+    # the narrow results computed as wide ones (b^T a^T)^T, outer products as broadcast
+    # multiplications: the plain product's numbers, into a strided out= as well
+    from policylab.deep.common.mlp_grad import _mm
+
+    g = torch.Generator().manual_seed(rows + inner + cols)
+    k = (2,) if stacked else ()
+    a = torch.randn(*k, rows, inner, generator=g, dtype=torch.float64)
+    # b as the blocks hold it: columns of a wider matrix, so a strided view
+    b = torch.randn(*k, inner, 2 * cols, generator=g, dtype=torch.float64)[..., :cols]
+    c = _mm(a, b)
+    assert c.shape == (*k, rows, cols) and c.is_contiguous()
+    expected = torch.matmul(a, b)
+    if inner == 1:  # one multiplication per element: bit for bit
+        assert torch.equal(c, expected)
+    torch.testing.assert_close(c, expected, rtol=1e-12, atol=1e-12)
+    buffer = torch.zeros(*k, rows, cols + 1, dtype=torch.float64)
+    assert _mm(a, b, out=buffer[..., :-1]).data_ptr() == buffer.data_ptr()
+    torch.testing.assert_close(buffer[..., :-1], expected, rtol=1e-12, atol=1e-12)
+    assert torch.all(buffer[..., -1] == 0)
+    if stacked:  # a 2-d operand is shared by the stacked networks
+        torch.testing.assert_close(_mm(a[0], b), torch.matmul(a[0], b), rtol=1e-12, atol=1e-12)
+
+
 def test_narrow_output_layer_equals_the_plain_product() -> None:
     # a 2-4 output layer on batches of any size, on blocks: the same numbers
     g = torch.Generator().manual_seed(2)

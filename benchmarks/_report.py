@@ -41,8 +41,10 @@ def processor() -> str:
         pass
     units = {"avx512f": "AVX-512", "avx2": "AVX2", "avx": "AVX"}
     unit = next((f", {name}" for flag, name in units.items() if flag in flags), "")
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return f"{model}{unit}, {cores} cores"
+    total = os.cpu_count() or 1
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else total
+    cores = f"{total} cores" if usable == total else f"{usable} of {total} cores usable"
+    return f"{model}{unit}, {cores}"
 
 
 def machine() -> str:

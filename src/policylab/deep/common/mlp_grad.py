@@ -234,8 +234,9 @@ def _mm(a: torch.Tensor, b: torch.Tensor, out: torch.Tensor | None = None) -> to
     - an outer product (a has one column) is one multiplication per element, so it is
       computed as that, a broadcast product, bit for bit what the product gives: a
       (2, 256, 1) x (2, 1, 257) product took 310 us as a batched product and 37 us so;
-    - a narrow result (at most 16 columns, at least 4 rows per column) is computed as
-      the wide one, c = (b^T a^T)^T: (256, 257) x (257, 6) took 184 us and 45 us so,
+    - a narrow result (at most 8 columns, at least 4 rows per column, and a of at
+      least 16,384 entries, below which the copies cost more than they save) is computed
+      as the wide one, c = (b^T a^T)^T: (256, 257) x (257, 6) took 184 us and 45 us so,
       (2, 256, 257) x (2, 257, 1) 451 us and 28 us (single products on one core of an
       AMD EPYC with torch's MKL; the narrow orientation was faster on an Intel core
       too). The sums run in another order, so c agrees with a b to float rounding. A
@@ -245,7 +246,9 @@ def _mm(a: torch.Tensor, b: torch.Tensor, out: torch.Tensor | None = None) -> to
     if a.shape[-1] == 1:
         return torch.mul(a, b.contiguous(), out=out)
     n = b.shape[-1]
-    if n <= 16 and a.shape[-2] >= 4 * n and (n > 1 or a.dim() == 3 or b.dim() == 3):
+    rows, inner = a.shape[-2:]
+    wide = rows >= 4 * n and rows * inner >= 16_384  # smaller: the copies cost more
+    if n <= 8 and wide and (n > 1 or a.dim() == 3 or b.dim() == 3):
         bt = b.mT.contiguous() if n == 1 else b.mT
         c = _mm(bt, a.mT).mT  # laid out row-major again: a copy of a few columns
         return c.contiguous() if out is None else out.copy_(c)

@@ -314,7 +314,8 @@ def uct_search(
     child_col = np.empty((size, W), dtype=np.int64)
     n_children = np.zeros(size, dtype=np.int64)
     path = np.empty(CELLS + 2, dtype=np.int64)
-    _new_node(0, cur, mask, node_cur, node_mask, untried, n_untried)
+    # an int64 index, not the literal 0 (which would compile a second copy)
+    _new_node(int(0), cur, mask, node_cur, node_mask, untried, n_untried)  # noqa: UP018, RUF046
     used = 1
     for _ in range(simulations):
         node = 0
@@ -355,7 +356,7 @@ def uct_search(
                 terminal_value[new] = 0.0
             else:
                 is_terminal[new] = False
-                _new_node(new, new_cur, new_mask, node_cur, node_mask, untried, n_untried)
+                _new_node(int(new), new_cur, new_mask, node_cur, node_mask, untried, n_untried)
             children[node, n_children[node]] = new
             child_col[node, n_children[node]] = col
             n_children[node] += 1

@@ -177,8 +177,8 @@ def _stack(runs: _MCRun) -> _Stack:
 
 
 @nb.njit(cache=True, nogil=True)
-def _run_of(x: _Stack, r: int) -> _MCRun:  # pragma: no cover - compiled
-    """Run r of stacked runs (views of its slices)."""
+def _run_of(x: _Stack, r: int | np.int64) -> _MCRun:  # pragma: no cover - compiled
+    """Run r of stacked runs (views of its slices); ``r`` an int64 (one compiled copy)."""
     return _MCRun(
         MCTables(x.q[r], x.nq[r], x.cq[r], x.v[r], x.nv[r], x.cv[r]),
         x.q2[r],
@@ -209,7 +209,11 @@ def _many_mc_runs(
     out = np.zeros((n_runs, 2), dtype=np.int64)
     for r in prange(n_runs):
         rng = rngs[r].copy()
-        steps, truncated = _mc_chunk(model, behaviour, settings, _run_of(runs, r), rng, 0, episodes)
+        # int64 arguments, as the single runs pass them (the prange index is unsigned and
+        # 0 a literal): other types would compile a second copy of the episode loop
+        run = _run_of(runs, np.int64(r))
+        k0 = int(0)  # noqa: UP018, RUF046
+        steps, truncated = _mc_chunk(model, behaviour, settings, run, rng, k0, episodes)
         rngs[r] = rng
         out[r, 0] = steps
         out[r, 1] = truncated

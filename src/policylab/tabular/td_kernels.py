@@ -523,6 +523,9 @@ def many_runs(
             tables.ring_r[r].copy(),
         )
         run_out = Episodes(out.returns[r], out.lengths[r], out.first_actions[r])
-        steps[r] = run_kernel(family, None, model, run_tables, settings, run_out, rng, 0, episodes)
+        # k0 as an int64, not the literal 0: a literal argument would compile (and cache)
+        # a second copy of the whole episode loop, beside the one the single runs use
+        k0 = int(0)  # noqa: UP018, RUF046
+        steps[r] = run_kernel(family, None, model, run_tables, settings, run_out, rng, k0, episodes)
         rngs[r] = rng
     return steps

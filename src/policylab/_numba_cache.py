@@ -28,6 +28,7 @@ been used for an hour (so that several checkouts used side by side keep theirs).
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import os
 import re
@@ -44,13 +45,20 @@ from numba.core import caching
 __all__ = ["cache_dir", "source_key"]
 
 _PACKAGE = Path(__file__).resolve().parent
-_IMPORT = re.compile(r"^\s*(?:from|import)\s+(policylab(?:\.\w+)*)", re.MULTILINE)
+#: ``from policylab.a import b, c`` (groups 1, and 2 or 3 with the names: in parentheses
+#: over several lines, or on one line) or ``import policylab.a`` (group 4).
+_IMPORT = re.compile(
+    r"^[ \t]*(?:from\s+(policylab(?:\.\w+)*)\s+import[ \t]+(?:\(([^)]*)\)|([\w \t,]+))"
+    r"|import\s+(policylab(?:\.\w+)*))",
+    re.MULTILINE,
+)
 _VERSION = re.compile(r"^__version__\s*=\s*['\"]([^'\"]+)['\"]", re.MULTILINE)
 _KEEP_RECENT = 16
 _GRACE_S = 3600.0
 _MAX_AGE_S = 7 * 24 * 3600.0
 
 
+@functools.cache
 def _module_file(name: str) -> Path | None:
     """The source file of a policylab module name, if it is one of the package's."""
     parts = name.split(".")[1:]
@@ -77,9 +85,11 @@ def _compiled_sources() -> dict[Path, bytes]:
         if p in seen or p not in texts:
             continue
         seen[p] = texts[p]
-        for name in _IMPORT.findall(texts[p].decode("utf-8", "replace")):
+        for name, grouped, names, imported in _IMPORT.findall(texts[p].decode("utf-8", "replace")):
+            name = name or imported
             # "from policylab.a.b import c" may name module c of package a.b.
-            for cand in (_module_file(name), *_submodules(name, texts[p])):
+            subs = [_module_file(f"{name}.{n}") for n in _names(grouped or names)]
+            for cand in (_module_file(name), *subs):
                 if cand is not None and cand not in seen:
                     todo.append(cand)
             parent = name
@@ -91,17 +101,13 @@ def _compiled_sources() -> dict[Path, bytes]:
     return seen
 
 
-def _submodules(package: str, text: bytes) -> list[Path | None]:
-    """Modules imported as names of a package: ``from policylab.a import b``."""
-    pat = re.compile(
-        r"^\s*from\s+" + re.escape(package) + r"\s+import\s+\(?([\w\s,]+)", re.MULTILINE
-    )
-    out: list[Path | None] = []
-    for names in pat.findall(text.decode("utf-8", "replace")):
-        for n in names.replace("\n", " ").split(","):
-            n = n.strip().split(" ")[0]
-            if n:
-                out.append(_module_file(f"{package}.{n}"))
+def _names(imported: str) -> list[str]:
+    """The names of ``from ... import a, b as c, (d, e)``: a, b, d, e."""
+    out = []
+    for n in imported.replace("\n", " ").split(","):
+        n = n.strip().split(" ")[0]
+        if n:
+            out.append(n)
     return out
 
 

@@ -9,10 +9,10 @@ from collections.abc import Hashable
 from typing import Any
 
 import numpy as np
-from scipy.stats import poisson
 
 from policylab.exceptions import InvalidArgumentError
 from policylab.mdp.finite import FiniteMDP
+from policylab.problems._poisson import poisson_pmf_and_tail
 from policylab.problems.registry import register_problem
 
 __all__ = ["forest_management", "inventory_management"]
@@ -88,7 +88,7 @@ def inventory_management(
         )
     dynamics: dict[Hashable, Any] = {}
     k = np.arange(capacity + 1)
-    pmf = poisson.pmf(k, demand_mean)
+    pmf, tails = poisson_pmf_and_tail(capacity + 1, demand_mean)  # tails[y] = P(D >= y)
     for s in range(capacity + 1):
         acts: dict[int, list[tuple[float, int, float]]] = {}
         for a in range(min(capacity - s, max_order) + 1):
@@ -98,7 +98,7 @@ def inventory_management(
             for d in range(y):
                 nxt = y - d
                 outs.append((float(pmf[d]), nxt, fixed + price * d - holding_cost * nxt))
-            tail = float(poisson.sf(y - 1, demand_mean))  # P(D >= y)
+            tail = float(tails[y])  # P(D >= y)
             if tail > 0:
                 # E[(D - y)^+] = mean - y + sum_{d < y} (y - d) p(d); divide by P(D >= y)
                 excess = demand_mean - y + float(np.sum((y - k[:y]) * pmf[:y]))
@@ -135,8 +135,7 @@ def _inventory_post_decision(
 
     n = capacity + 1
     d = np.arange(n)
-    pmf = poisson.pmf(d, demand_mean)
-    tail = poisson.sf(d - 1, demand_mean)  # tail[y] = P(D >= y)
+    pmf, tail = poisson_pmf_and_tail(n, demand_mean)  # tail[y] = P(D >= y)
     # E[min(y, D)] = sum_{d < y} d p(d) + y P(D >= y), for y = 0..capacity
     below = np.concatenate([[0.0], np.cumsum(d * pmf)[:-1]])
     sales = below + d * tail

@@ -10,12 +10,12 @@ from collections.abc import Hashable, Sequence
 from typing import Any
 
 import numpy as np
-from scipy.stats import poisson
 
 from policylab.exceptions import InvalidArgumentError
 from policylab.mdp.finite import FiniteMDP
 from policylab.mdp.grid import Cell, GridLayout, grid_mdp
 from policylab.mdp.policy import Policy
+from policylab.problems._poisson import poisson_pmf_and_tail
 from policylab.problems.registry import register_problem
 
 __all__ = [
@@ -146,10 +146,8 @@ def _location_model(
     """
     N = max_cars
     k = np.arange(N + 1)
-    req_p = poisson.pmf(k, request_mean)
-    req_tail = poisson.sf(k - 1, request_mean)  # P(requests >= k)
-    ret_p = poisson.pmf(k, return_mean)
-    ret_tail = poisson.sf(k - 1, return_mean)  # P(returns >= k)
+    req_p, req_tail = poisson_pmf_and_tail(N + 1, request_mean)  # tail: P(requests >= k)
+    ret_p, ret_tail = poisson_pmf_and_tail(N + 1, return_mean)  # P(returns >= k)
     rent = k[:, None] - k[None, :]  # rentals m - left, for m (rows) and left (columns)
     p_rent = np.where(rent >= 0, req_p[np.clip(rent, 0, N)], 0.0)
     p_rent[k, 0] = req_tail[k]  # left = 0: every request of m or more rents all m cars

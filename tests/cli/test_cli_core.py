@@ -72,21 +72,6 @@ def test_help_on_every_subcommand(capsys):
         assert code == 0 and "Usage" in out, name
 
 
-def test_tour_quick(capsys, tmp_path):
-    code, out, _ = run(["tour", "--quick", "--out", str(tmp_path)], capsys)
-    assert code == 0
-    assert "-6" in out and "-5" in out and "Tour complete" in out
-    figures = sorted(tmp_path.glob("*.png"))
-    names = {f.name for f in figures}
-    assert {
-        "01_interaction_loop.png",
-        "07_mountain_optimal.png",
-        "08_slippery_q_table.png",
-    } <= names
-    assert len(figures) >= 13 and all(f.stat().st_size > 5000 for f in figures)
-    assert all(f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for f in figures)
-
-
 @pytest.mark.parametrize(
     "args", [["evaluate", "recycling-robot"], ["solve"], ["no-such-command"], ["show", "--bogus"]]
 )

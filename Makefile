@@ -8,12 +8,10 @@ STAMP := $(VENV)/.installed
 
 venv: $(STAMP)
 
-# --no-compile: Python compiles each installed module on its first import instead of pip
-# compiling every one of them at install (half the install's time: 90 s against 183 s).
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet --no-compile -e '.[deep,dev,docs,games,mujoco,sweep]'
+	$(PY) -m pip install --quiet -e '.[deep,dev,docs,games,mujoco,sweep]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -29,7 +27,7 @@ docs-serve: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs serve --strict
 
 bench: $(STAMP)
-	$(PY) -m pip install --quiet --no-compile -e '.[deep,dev,games,mujoco,sweep,bench]'
+	$(PY) -m pip install --quiet -e '.[deep,dev,games,mujoco,sweep,bench]'
 	$(PY) benchmarks/run.py $(BENCH)
 
 # Mutation testing of the equations (not part of `make test`; 45 min on 2 loaded cores).

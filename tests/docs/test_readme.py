@@ -30,8 +30,9 @@ BUDGETS: dict[str, dict[str, str]] = {
         "agent.learn(150_000,": "agent.learn(4_096,",
         "episodes=100": "episodes=5",
     },
-    # 100 random steps, then 900 of SAC's updates: the whole loop, not the 20,000 of a result
-    "pl.deep.SAC(": {"agent.learn(20_000,": "agent.learn(1_000,"},
+    # 100 random steps, then an update a step once the buffer holds a batch of 256: 245
+    # updates, the whole loop, not the 20,000 steps of a result
+    "pl.deep.SAC(": {"agent.learn(20_000,": "agent.learn(500,"},
 }
 
 
@@ -69,7 +70,7 @@ def _claims_deep(ns: dict[str, Any]) -> None:
 
 
 def _claims_walking(ns: dict[str, Any]) -> None:
-    assert ns["agent"].num_timesteps >= 1_000
+    assert ns["agent"].num_timesteps >= 500 and ns["agent"].n_updates >= 245
     assert ns["walker"].config.learning_starts == 10_000
 
 

@@ -110,16 +110,22 @@ def test_mc_es_on_exact_model_reaches_optimal_policy(bj, optimum):
 
 def test_mc_control_on_gymnasium_blackjack_reaches_optimal_policy(bj, optimum):
     """The general path on Gymnasium's Blackjack-v1 (tuple observations), held against the
-    exact model; weighted off-policy control from the equiprobable behaviour (250k episodes:
-    the env itself runs ~6k episodes/s, so this is the suite's slowest test)."""
+    exact model; weighted off-policy control from the equiprobable behaviour (150k episodes:
+    the env itself runs ~6k episodes/s, so this is one of the suite's slowest tests).
+
+    Seeds 0-4 get 91.4-95.0% of the states where the two actions' values differ by more
+    than 0.01 right after 150k episodes (seed 0: 95% and more after 250k); the greedy policy
+    of the behaviour's own action values, which ignoring the importance weights would
+    learn, gets 69% of them (exact: ``evaluate_policy`` of the uniform policy).
+    """
     sel, opt = _margin_states(bj, optimum)
     env = gym.make("Blackjack-v1", sab=True)
-    res = mc_off_policy(env, weighted=True, episodes=250_000, seed=0, model=bj, checkpoints=5)
+    res = mc_off_policy(env, weighted=True, episodes=150_000, seed=0, model=bj, checkpoints=5)
     assert res.params["path"] == "gymnasium"
     assert res.states == bj.states  # observations mapped onto the model's labels
     ok = [res.policy[i].argmax() == opt[i] for i in np.flatnonzero(sel) if res.counts[i].sum() > 0]
     assert len(ok) >= 270  # every state Gymnasium can show (naturals appear as (21, d, 1))
-    assert np.mean(ok) >= 0.95
+    assert np.mean(ok) >= 0.90
 
 
 def test_exact_model_matches_gymnasium_env(bj):

@@ -82,11 +82,15 @@ def test_same_input_same_bytes(tmp_path):
     assert a == b
 
 
-def test_import_policylab_does_not_import_matplotlib():
+def test_import_policylab_loads_neither_matplotlib_nor_scipy_stats():
+    """Both take a second or more to import: the figures and the Poisson problems load them."""
     code = (
         "import sys, policylab, policylab.cli.main\n"
         "assert 'matplotlib' not in sys.modules, 'matplotlib imported'\n"
+        "assert 'scipy.stats' not in sys.modules, 'scipy.stats imported'\n"
         "import policylab.plot\n"
         "assert 'matplotlib.pyplot' not in sys.modules, 'pyplot imported'\n"
+        "policylab.problems.jacks_car_rental(max_cars=3)\n"
+        "assert 'scipy.stats' in sys.modules\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True)

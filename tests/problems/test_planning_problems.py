@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -173,14 +170,3 @@ def test_registered_and_gymnasium_ready(name: str) -> None:
     env = gym.make(spec.gym_id)
     check_env(env.unwrapped, skip_render_check=True)
     env.close()
-
-
-def test_import_policylab_does_not_import_scipy_stats():
-    """scipy.stats takes over a second to import: only the Poisson problems load it."""
-    code = (
-        "import sys, policylab, policylab.cli.main\n"
-        "assert 'scipy.stats' not in sys.modules, 'scipy.stats imported'\n"
-        "policylab.problems.jacks_car_rental(max_cars=3)\n"
-        "assert 'scipy.stats' in sys.modules\n"
-    )
-    subprocess.run([sys.executable, "-c", code], check=True)

@@ -9,16 +9,17 @@ STAMP := $(VENV)/.installed
 venv: $(STAMP)
 
 # pip byte-compiles what it installs one file at a time: half of the install's time. It
-# installs without that, then compileall does the same work on every core. The modules
-# must be compiled at install: where PYTHONDONTWRITEBYTECODE is set, Python never caches
-# what it compiles on import, and every test process would compile torch anew. As pip
-# does, a file that does not compile on this Python (a test file written for a newer one)
-# is skipped, quietly.
+# installs without that, then compileall does the same work on every core, for policylab's
+# own source too (an editable install, which pip does not compile). The modules must be
+# compiled here: where PYTHONDONTWRITEBYTECODE is set, Python never caches what it
+# compiles on import, and every process (each CLI call, test worker and Ray worker) would
+# compile torch and policylab anew. As pip does, a file that does not compile on this
+# Python (a test file written for a newer one) is skipped, quietly.
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet --no-compile -e '.[deep,dev,docs,games,mujoco,sweep]'
-	$(PY) -m compileall -qq -j 0 "$$($(PY) -c 'import sysconfig; print(sysconfig.get_path("purelib"))')" || true
+	$(PY) -m compileall -qq -j 0 "$$($(PY) -c 'import sysconfig; print(sysconfig.get_path("purelib"))')" src || true
 	touch $(STAMP)
 
 demo: $(STAMP)

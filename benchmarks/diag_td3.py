@@ -1,0 +1,221 @@
+"""Where policylab's TD3 and Stable-Baselines3's could differ, measured on HalfCheetah-v5.
+
+Two checks behind the TD3 row of the 200k-step quality table (BENCHMARKS.md):
+
+``--update``: the same weights loaded into both libraries' TD3 (400x300, the zoo's
+settings), the same random minibatches fed to two updates of each, target smoothing
+noise 0 so that both compute the same targets. Prints the relative difference
+||g_SB3 - c g_policylab|| / ||g_SB3|| of each layer's gradient: the critics' at the first
+update (c = 2: policylab's critic loss is sum_i E[(Q_i - y)^2] / 2, SB3's the sum of the
+two mean squared errors; Adam's step does not see the factor), and the actor's at the
+second (c = 1), with both libraries' critic optimizers switched off so that the actor's
+gradient is taken through identical critics.
+
+``--init {orthogonal,torch} --seed S --steps N``: policylab's TD3 with the zoo's
+settings, its actor and critics initialised either as policylab does (orthogonal
+weights, zero biases) or as PyTorch's ``nn.Linear`` does (weights and biases uniform in
++-1/sqrt(fan_in): what SB3 and Fujimoto et al. 2018 use), evaluated on 5 greedy episodes
+every 20,000 steps; one JSON line per run is appended to ``--results``.
+
+    python benchmarks/diag_td3.py --update
+    taskset -c 0 python benchmarks/diag_td3.py --init torch --seed 0 --steps 100000 \
+        --results benchmarks/results/td3-init-100k.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from typing import Any
+
+import numpy as np
+import torch
+
+import policylab as pl
+from policylab.deep.common.buffers import ReplayBatch
+
+ENV_ID = "HalfCheetah-v5"
+
+
+def _linears(net: torch.nn.Module) -> list[torch.nn.Linear]:
+    return [m for m in net.modules() if isinstance(m, torch.nn.Linear)]
+
+
+def _critic_layers(
+    critic: Any, k: int, grads: bool = False
+) -> list[tuple[torch.Tensor, torch.Tensor]]:
+    """Critic k of policylab's twin critics as (W of shape (in, out), b) per layer.
+
+    The first layer's W is the concatenation of the observation and action blocks;
+    ``grads``: their gradients instead.
+    """
+    ws, bs = list(critic.weights), list(critic.biases)
+    if grads:
+        ws, bs = [w.grad for w in ws], [b.grad for b in bs]
+    layers = [(torch.cat([ws[0][k], ws[1][k]], 0), bs[0][k, 0])]
+    layers += [(ws[i + 1][k], bs[i][k, 0]) for i in range(1, len(bs))]
+    return layers
+
+
+def _set_critic(critic: Any, k: int, linears: list[torch.nn.Linear], obs_dim: int) -> None:
+    ws, bs = list(critic.weights), list(critic.biases)
+    ws[0][k].copy_(linears[0].weight.T[:obs_dim])
+    ws[1][k].copy_(linears[0].weight.T[obs_dim:])
+    bs[0][k, 0].copy_(linears[0].bias)
+    for i in range(1, len(linears)):
+        ws[i + 1][k].copy_(linears[i].weight.T)
+        bs[i][k, 0].copy_(linears[i].bias)
+
+
+def _rel(a: torch.Tensor, b: torch.Tensor) -> float:
+    return float((a - b).norm() / a.norm())
+
+
+def update(args: argparse.Namespace) -> None:
+    """Both libraries' TD3 from the same weights on the same minibatches: gradients."""
+    from stable_baselines3 import TD3 as SB3TD3
+    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.type_aliases import ReplayBufferSamples
+
+    torch.set_num_threads(1)
+    kw: dict[str, Any] = dict(learning_rate=1e-3, target_policy_noise=0.0)
+    pol = pl.deep.TD3(ENV_ID, seed=0, hidden=(400, 300), learning_starts=10, **kw)
+    sb = SB3TD3(
+        "MlpPolicy", ENV_ID, policy_kwargs=dict(net_arch=[400, 300]), device="cpu", seed=0, **kw
+    )
+    sb.set_logger(configure(None, []))
+    obs_dim, m = pol.obs_dim, pol.action_dim
+    with torch.no_grad():
+        for src, dst in ((sb.actor.mu, pol.actor.net), (sb.actor_target.mu, pol.actor_target.net)):
+            for s, d in zip(_linears(src), _linears(dst), strict=True):
+                d.weight.copy_(s.weight)
+                d.bias.copy_(s.bias)
+        for src_critic, dst_critic in (
+            (sb.critic, pol.critic),
+            (sb.critic_target, pol.critic_target),
+        ):
+            for k, q_net in enumerate(src_critic.q_networks):
+                _set_critic(dst_critic, k, _linears(q_net), obs_dim)
+    rng = np.random.default_rng(args.seed)
+    batch_size = 256
+    for step in (1, 2):
+        o = rng.normal(size=(batch_size, obs_dim)).astype(np.float32)
+        a = rng.uniform(-1, 1, (batch_size, m)).astype(np.float32)
+        r = rng.normal(size=batch_size).astype(np.float32)
+        o2 = rng.normal(size=(batch_size, obs_dim)).astype(np.float32)
+        done = (rng.uniform(size=batch_size) < 0.1).astype(np.float32)
+        samples = ReplayBufferSamples(
+            *(torch.as_tensor(x) for x in (o, a, o2)),
+            torch.as_tensor(done)[:, None],
+            torch.as_tensor(r)[:, None],
+        )
+        sb.replay_buffer.sample = lambda *_, s=samples, **__: s  # type: ignore[method-assign]
+        sb.train(gradient_steps=1, batch_size=batch_size)
+        pol._train_step(
+            ReplayBatch(
+                indices=np.arange(batch_size),
+                obs=o,
+                actions=a,
+                returns=r,
+                next_obs=o2,
+                discounts=(0.99 * (1 - done)).astype(np.float32),
+                weights=np.ones(batch_size, np.float32),
+            )
+        )
+        if step == 1:
+            print("update 1, critics: ||g_SB3 - 2 g_policylab|| / ||g_SB3|| per layer (W, b)")
+            for k, q_net in enumerate(sb.critic.q_networks):
+                for i, (lin, (w, b)) in enumerate(
+                    zip(_linears(q_net), _critic_layers(pol.critic, k, grads=True), strict=True)
+                ):
+                    print(
+                        f"  critic {k + 1} layer {i + 1}: {_rel(lin.weight.grad.T, 2 * w):.1e}, "
+                        f"{_rel(lin.bias.grad, 2 * b):.1e}"
+                    )
+            # identical critics for the actor step of update 2: both critic optimizers off
+            sb.critic.optimizer.step = lambda *_, **__: None  # type: ignore[method-assign]
+            for group in pol.critic_optimizer.param_groups:
+                group["lr"] = 0.0
+            with torch.no_grad():
+                for k, q_net in enumerate(sb.critic.q_networks):
+                    _set_critic(pol.critic, k, _linears(q_net), obs_dim)
+    print("update 2, actor: ||g_SB3 - g_policylab|| / ||g_SB3|| per layer (W, b)")
+    for i, (s, d) in enumerate(zip(_linears(sb.actor.mu), _linears(pol.actor.net), strict=True)):
+        print(
+            f"  actor layer {i + 1}: {_rel(s.weight.grad, d.weight.grad):.1e}, "
+            f"{_rel(s.bias.grad, d.bias.grad):.1e}"
+        )
+
+
+def _torch_init(agent: Any, seed: int) -> None:
+    """Re-initialise the actor, the critics and their targets as ``nn.Linear`` does."""
+    torch.manual_seed(seed)
+    with torch.no_grad():
+        for layer, target_layer in zip(
+            _linears(agent.actor.net), _linears(agent.actor_target.net), strict=True
+        ):
+            fresh = torch.nn.Linear(layer.in_features, layer.out_features)
+            for p in (layer, target_layer):
+                p.weight.copy_(fresh.weight)
+                p.bias.copy_(fresh.bias)
+        for k in range(2):
+            shapes = [w.shape for w, _ in _critic_layers(agent.critic, k)]
+            fresh_layers = [torch.nn.Linear(n_in, n_out) for n_in, n_out in shapes]
+            _set_critic(agent.critic, k, fresh_layers, agent.obs_dim)
+        for p, target in zip(
+            agent.critic.parameters(), agent.critic_target.parameters(), strict=True
+        ):
+            target.copy_(p)
+
+
+def init(args: argparse.Namespace) -> None:
+    """policylab's TD3 with one of two initialisations: its learning curve."""
+    torch.set_num_threads(1)
+    fields, _ = pl.deep.default_config("td3", ENV_ID)
+    agent = pl.deep.TD3(ENV_ID, seed=args.seed, **fields)
+    if args.init == "torch":
+        _torch_init(agent, args.seed)
+    curve: list[tuple[int, float]] = []
+    start = time.perf_counter()
+
+    def evaluate_every_20k(a: Any, _metrics: Any) -> bool:
+        t = a.num_timesteps
+        if t > 0 and t % 20_000 == 0 and (not curve or curve[-1][0] != t):
+            ret = float(np.mean(pl.deep.evaluate(a, ENV_ID, 5, 1000 + args.seed)))
+            curve.append((t, round(ret, 1)))
+            print(
+                f"{args.init} seed {args.seed} step {t}: {ret:.1f} "
+                f"({time.perf_counter() - start:.0f} s)",
+                flush=True,
+            )
+        return True
+
+    agent.learn(args.steps, callback=evaluate_every_20k)
+    if args.results:
+        with open(args.results, "a") as f:
+            f.write(
+                json.dumps(dict(env=ENV_ID, init=args.init, seed=args.seed, curve=curve)) + "\n"
+            )
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument(
+        "--update", action="store_true", help="compare one update's gradients with SB3's"
+    )
+    p.add_argument("--init", choices=("orthogonal", "torch"), help="learning curve with this init")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--steps", type=int, default=100_000)
+    p.add_argument("--results", help="append the --init curve to this JSON-lines file")
+    args = p.parse_args()
+    if args.update:
+        update(args)
+    elif args.init:
+        init(args)
+    else:
+        p.error("give --update or --init")
+
+
+if __name__ == "__main__":
+    main()

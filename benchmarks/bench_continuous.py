@@ -333,11 +333,14 @@ def per_update(args: argparse.Namespace) -> None:
     print(_load())
 
 
-def _sb3_model(algo: str, env_id: str, seed: int, steps: int) -> object:
+def _sb3_model(
+    algo: str, env_id: str, seed: int, steps: int, callback: object = None
+) -> object:
     """SB3's model trained with the zoo's entry for ``env_id`` (the same as policylab's).
 
     Pendulum-v1: the zoo's own entry; a MuJoCo walker: the zoo's "mujoco-defaults"
     (SB3's defaults, 10,000 random steps first; TD3 with N(0, 0.1^2) action noise).
+    ``callback``: an SB3 callback for ``learn``.
     """
     import gymnasium as gym
     from stable_baselines3 import SAC, TD3
@@ -362,7 +365,7 @@ def _sb3_model(algo: str, env_id: str, seed: int, steps: int) -> object:
             "MlpPolicy", env_id, learning_starts=10_000, action_noise=noise,
             learning_rate=1e-3, policy_kwargs=dict(net_arch=[400, 300]), **kw,
         )  # fmt: skip
-    model.learn(steps)  # type: ignore[attr-defined]
+    model.learn(steps, callback=callback)  # type: ignore[attr-defined]
     return model
 
 

@@ -17,6 +17,9 @@ weights, zero biases) or as PyTorch's ``nn.Linear`` does (weights and biases uni
 +-1/sqrt(fan_in): what SB3 and Fujimoto et al. 2018 use), evaluated on 5 greedy episodes
 every 20,000 steps; one JSON line per run is appended to ``--results``.
 
+``--sb3-curve --seed S --steps N``: the same learning curve of SB3's TD3, trained as in
+the quality table (``bench_continuous._sb3_model``).
+
     python benchmarks/diag_td3.py --update
     taskset -c 0 python benchmarks/diag_td3.py --init torch --seed 0 --steps 100000 \
         --results benchmarks/results/td3-init-100k.jsonl
@@ -169,6 +172,31 @@ def _torch_init(agent: Any, seed: int) -> None:
             target.copy_(p)
 
 
+class _Curve:
+    """Greedy returns every 20,000 env steps (5 episodes, reset seed 1000 + seed)."""
+
+    def __init__(self, label: str, seed: int) -> None:
+        self.label, self.seed = label, seed
+        self.points: list[tuple[int, float]] = []
+        self.start = time.perf_counter()
+
+    def at(self, steps: int, agent: Any) -> None:
+        if steps > 0 and steps % 20_000 == 0 and (not self.points or self.points[-1][0] != steps):
+            ret = float(np.mean(pl.deep.evaluate(agent, ENV_ID, 5, 1000 + self.seed)))
+            self.points.append((steps, round(ret, 1)))
+            print(
+                f"{self.label} seed {self.seed} step {steps}: {ret:.1f} "
+                f"({time.perf_counter() - self.start:.0f} s)",
+                flush=True,
+            )
+
+    def write(self, path: str | None, **fields: Any) -> None:
+        if path:
+            line = dict(env=ENV_ID, **fields, seed=self.seed, curve=self.points)
+            with open(path, "a") as f:
+                f.write(json.dumps(line) + "\n")
+
+
 def init(args: argparse.Namespace) -> None:
     """policylab's TD3 with one of two initialisations: its learning curve."""
     torch.set_num_threads(1)
@@ -176,27 +204,32 @@ def init(args: argparse.Namespace) -> None:
     agent = pl.deep.TD3(ENV_ID, seed=args.seed, **fields)
     if args.init == "torch":
         _torch_init(agent, args.seed)
-    curve: list[tuple[int, float]] = []
-    start = time.perf_counter()
+    curve = _Curve(args.init, args.seed)
 
-    def evaluate_every_20k(a: Any, _metrics: Any) -> bool:
-        t = a.num_timesteps
-        if t > 0 and t % 20_000 == 0 and (not curve or curve[-1][0] != t):
-            ret = float(np.mean(pl.deep.evaluate(a, ENV_ID, 5, 1000 + args.seed)))
-            curve.append((t, round(ret, 1)))
-            print(
-                f"{args.init} seed {args.seed} step {t}: {ret:.1f} "
-                f"({time.perf_counter() - start:.0f} s)",
-                flush=True,
-            )
+    def every_step(a: Any, _metrics: Any) -> bool:
+        curve.at(a.num_timesteps, a)
         return True
 
-    agent.learn(args.steps, callback=evaluate_every_20k)
-    if args.results:
-        with open(args.results, "a") as f:
-            f.write(
-                json.dumps(dict(env=ENV_ID, init=args.init, seed=args.seed, curve=curve)) + "\n"
-            )
+    agent.learn(args.steps, callback=every_step)
+    curve.write(args.results, init=args.init)
+
+
+def sb3_curve(args: argparse.Namespace) -> None:
+    """SB3's TD3 with the same settings as the quality table's: its learning curve."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from bench_continuous import _sb3_model, _SB3Predictor
+
+    torch.set_num_threads(1)
+    curve = _Curve("SB3", args.seed)
+
+    class EveryStep(BaseCallback):  # type: ignore[misc]
+        def _on_step(self) -> bool:
+            curve.at(self.num_timesteps, _SB3Predictor(self.model))
+            return True
+
+    _sb3_model("td3", ENV_ID, args.seed, args.steps, callback=EveryStep())
+    curve.write(args.results, lib="SB3")
 
 
 def main() -> None:
@@ -205,6 +238,7 @@ def main() -> None:
         "--update", action="store_true", help="compare one update's gradients with SB3's"
     )
     p.add_argument("--init", choices=("orthogonal", "torch"), help="learning curve with this init")
+    p.add_argument("--sb3-curve", action="store_true", help="SB3's TD3 learning curve")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--steps", type=int, default=100_000)
     p.add_argument("--results", help="append the --init curve to this JSON-lines file")
@@ -213,8 +247,10 @@ def main() -> None:
         update(args)
     elif args.init:
         init(args)
+    elif args.sb3_curve:
+        sb3_curve(args)
     else:
-        p.error("give --update or --init")
+        p.error("give --update, --init or --sb3-curve")
 
 
 if __name__ == "__main__":

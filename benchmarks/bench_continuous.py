@@ -333,9 +333,7 @@ def per_update(args: argparse.Namespace) -> None:
     print(_load())
 
 
-def _sb3_model(
-    algo: str, env_id: str, seed: int, steps: int, callback: object = None
-) -> object:
+def _sb3_model(algo: str, env_id: str, seed: int, steps: int, callback: object = None) -> object:
     """SB3's model trained with the zoo's entry for ``env_id`` (the same as policylab's).
 
     Pendulum-v1: the zoo's own entry; a MuJoCo walker: the zoo's "mujoco-defaults"

@@ -22,7 +22,7 @@ the quality table (``bench_continuous._sb3_model``).
 
     python benchmarks/diag_td3.py --update
     taskset -c 0 python benchmarks/diag_td3.py --init torch --seed 0 --steps 100000 \
-        --results benchmarks/results/td3-init-100k.jsonl
+        --results benchmarks/results/td3-curves-100k.jsonl
 """
 
 from __future__ import annotations
@@ -211,7 +211,7 @@ def init(args: argparse.Namespace) -> None:
         return True
 
     agent.learn(args.steps, callback=every_step)
-    curve.write(args.results, init=args.init)
+    curve.write(args.results, lib="policylab", init=args.init)
 
 
 def sb3_curve(args: argparse.Namespace) -> None:
@@ -229,7 +229,7 @@ def sb3_curve(args: argparse.Namespace) -> None:
             return True
 
     _sb3_model("td3", ENV_ID, args.seed, args.steps, callback=EveryStep())
-    curve.write(args.results, lib="SB3")
+    curve.write(args.results, lib="SB3", init="torch")
 
 
 def main() -> None:

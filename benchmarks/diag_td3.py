@@ -15,12 +15,15 @@ gradient is taken through identical critics.
 settings, its actor and critics initialised either as policylab does (orthogonal
 weights, zero biases) or as PyTorch's ``nn.Linear`` does (weights and biases uniform in
 +-1/sqrt(fan_in): what SB3 and Fujimoto et al. 2018 use), evaluated on 5 greedy episodes
-every 20,000 steps; one JSON line per run is appended to ``--results``.
+every 20,000 steps, each time with a probe of the actor's saturation and the critic's
+values (see ``_Curve``); one JSON line per run is appended to ``--results``.
 
 ``--sb3-curve --seed S --steps N``: the same learning curve of SB3's TD3, trained as in
 the quality table (``bench_continuous._sb3_model``).
 
     python benchmarks/diag_td3.py --update
+    taskset -c 1 python benchmarks/diag_td3.py --sb3-curve --seed 0 --steps 200000 \
+        --results benchmarks/results/td3-curves-200k.jsonl
     taskset -c 0 python benchmarks/diag_td3.py --init torch --seed 0 --steps 100000 \
         --results benchmarks/results/td3-curves-100k.jsonl
 """
@@ -173,26 +176,52 @@ def _torch_init(agent: Any, seed: int) -> None:
 
 
 class _Curve:
-    """Greedy returns every 20,000 env steps (5 episodes, reset seed 1000 + seed)."""
+    """Greedy returns every 20,000 env steps (5 episodes, reset seed 1000 + seed).
+
+    With each return, a probe of what could drift late in a run, on 1,024 stored
+    observations drawn by the probe's own generator (the run's own draws are untouched):
+    the share of the actor's action components at |mu(s)| > 0.99, the mean |pre-tanh
+    output|, and the mean Q_1(s, mu(s)).
+    """
 
     def __init__(self, label: str, seed: int) -> None:
         self.label, self.seed = label, seed
         self.points: list[tuple[int, float]] = []
+        self.probes: list[tuple[int, float, float, float]] = []
+        self.rng = np.random.default_rng(seed)
         self.start = time.perf_counter()
 
-    def at(self, steps: int, agent: Any) -> None:
-        if steps > 0 and steps % 20_000 == 0 and (not self.points or self.points[-1][0] != steps):
-            ret = float(np.mean(pl.deep.evaluate(agent, ENV_ID, 5, 1000 + self.seed)))
-            self.points.append((steps, round(ret, 1)))
-            print(
-                f"{self.label} seed {self.seed} step {steps}: {ret:.1f} "
-                f"({time.perf_counter() - self.start:.0f} s)",
-                flush=True,
+    def due(self, steps: int) -> bool:
+        return (
+            steps > 0 and steps % 20_000 == 0 and (not self.points or self.points[-1][0] != steps)
+        )
+
+    def at(self, steps: int, agent: Any, stored_obs: np.ndarray, probe: Any) -> None:
+        """Evaluate ``agent``; ``probe(obs)`` gives (pre-tanh outputs, Q_1(s, mu(s)))."""
+        ret = float(np.mean(pl.deep.evaluate(agent, ENV_ID, 5, 1000 + self.seed)))
+        self.points.append((steps, round(ret, 1)))
+        obs = torch.as_tensor(stored_obs[self.rng.integers(0, len(stored_obs), 1024)])
+        with torch.no_grad():
+            pre, q = probe(obs.float())
+        saturated = float((torch.tanh(pre).abs() > 0.99).float().mean())
+        self.probes.append(
+            (
+                steps,
+                round(saturated, 4),
+                round(float(pre.abs().mean()), 3),
+                round(float(q.mean()), 1),
             )
+        )
+        print(
+            f"{self.label} seed {self.seed} step {steps}: {ret:.1f} (saturated {saturated:.3f}, "
+            f"|pre-tanh| {float(pre.abs().mean()):.2f}, Q {float(q.mean()):.1f}; "
+            f"{time.perf_counter() - self.start:.0f} s)",
+            flush=True,
+        )
 
     def write(self, path: str | None, **fields: Any) -> None:
         if path:
-            line = dict(env=ENV_ID, **fields, seed=self.seed, curve=self.points)
+            line = dict(env=ENV_ID, **fields, seed=self.seed, curve=self.points, probe=self.probes)
             with open(path, "a") as f:
                 f.write(json.dumps(line) + "\n")
 
@@ -206,8 +235,13 @@ def init(args: argparse.Namespace) -> None:
         _torch_init(agent, args.seed)
     curve = _Curve(args.init, args.seed)
 
+    def probe(obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        pre = agent.actor.features(obs)
+        return pre, agent.critic(obs, torch.tanh(pre))[0]
+
     def every_step(a: Any, _metrics: Any) -> bool:
-        curve.at(a.num_timesteps, a)
+        if curve.due(a.num_timesteps):
+            curve.at(a.num_timesteps, a, a.replay.obs[: a.replay.size], probe)
         return True
 
     agent.learn(args.steps, callback=every_step)
@@ -225,7 +259,16 @@ def sb3_curve(args: argparse.Namespace) -> None:
 
     class EveryStep(BaseCallback):  # type: ignore[misc]
         def _on_step(self) -> bool:
-            curve.at(self.num_timesteps, _SB3Predictor(self.model))
+            if curve.due(self.num_timesteps):
+                model, buffer = self.model, self.model.replay_buffer
+                actor, critic = model.actor, model.critic
+
+                def probe(obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+                    pre = actor.mu[:-1](obs)  # the actor's MLP before its final Tanh
+                    return pre, critic.q1_forward(obs, torch.tanh(pre))[:, 0]
+
+                stored = buffer.observations[: buffer.size(), 0]
+                curve.at(self.num_timesteps, _SB3Predictor(model), stored, probe)
             return True
 
     _sb3_model("td3", ENV_ID, args.seed, args.steps, callback=EveryStep())

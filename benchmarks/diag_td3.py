@@ -284,7 +284,7 @@ def main() -> None:
     p.add_argument("--sb3-curve", action="store_true", help="SB3's TD3 learning curve")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--steps", type=int, default=100_000)
-    p.add_argument("--results", help="append the --init curve to this JSON-lines file")
+    p.add_argument("--results", help="append the curve (--init, --sb3-curve) to this file")
     args = p.parse_args()
     if args.update:
         update(args)

@@ -11,6 +11,10 @@ two mean squared errors; Adam's step does not see the factor), and the actor's a
 second (c = 1), with both libraries' critic optimizers switched off so that the actor's
 gradient is taken through identical critics.
 
+``--data``: 2,100 steps of policylab's TD3 (the last 100 learning), each stored
+transition replayed from its own state (MuJoCo's ``set_state``) to compare rewards and
+next observations; then two updates, checking the targets' Polyak step.
+
 ``--init {orthogonal,torch} --seed S --steps N``: policylab's TD3 with the zoo's
 settings, its actor and critics initialised either as policylab does (orthogonal
 weights, zero biases) or as PyTorch's ``nn.Linear`` does (weights and biases uniform in
@@ -154,6 +158,50 @@ def update(args: argparse.Namespace) -> None:
         )
 
 
+def data(args: argparse.Namespace) -> None:
+    """A real run's stored transitions, replayed through MuJoCo, and its Polyak step."""
+    torch.set_num_threads(1)
+    agent = pl.deep.TD3(ENV_ID, seed=args.seed, hidden=(400, 300), learning_starts=2_000)
+    agent.learn(2_100)
+    rb, n = agent.replay, agent.replay.size
+    env = __import__("gymnasium").make(ENV_ID)
+    env.reset(seed=0)
+    sim = env.unwrapped
+    reward_err = obs_err = 0.0
+    for i in range(n):  # HalfCheetah's observation is qpos[1:] then qvel; rootx is free
+        sim.set_state(np.concatenate([[0.0], rb.obs[i][:8]]), rb.obs[i][8:].astype(np.float64))
+        nxt, reward, *_ = env.step(rb.actions[i])  # the action bounds are [-1, 1]
+        reward_err = max(reward_err, abs(reward - rb.returns[i]))
+        obs_err = max(obs_err, float(np.abs(nxt - rb.next_obs[i]).max()))
+    breaks = np.nonzero(np.abs(rb.next_obs[: n - 1] - rb.obs[1:n]).max(axis=1) > 1e-6)[0]
+    print(
+        f"{n} transitions: max |reward error| {reward_err:.1e}, max |next obs error| "
+        f"{obs_err:.1e}, discounts {np.unique(rb.discounts[:n])}, breaks after {breaks}"
+    )
+    batch = rb.sample(256)
+    for _ in range(2):  # one of the two updates steps the actor and both targets
+        before = [
+            torch.cat([p.reshape(-1) for p in ps]).clone()
+            for ps in (agent._target_params, agent._actor_target_params)
+        ]
+        agent._train_step(batch)
+        for name, old, target, online in zip(
+            ("critic", "actor"),
+            before,
+            (agent._target_params, agent._actor_target_params),
+            (agent._critic_params, agent._actor_params),
+            strict=True,
+        ):
+            new, theta = (
+                torch.cat([p.detach().reshape(-1) for p in ps]) for ps in (target, online)
+            )
+            err = float((new - (0.995 * old + 0.005 * theta)).norm())
+            print(
+                f"update {agent.n_updates}, {name} target: moved {float((new - old).norm()):.1e}, "
+                f"off 0.995 theta' + 0.005 theta by {err:.1e}"
+            )
+
+
 def _torch_init(agent: Any, seed: int) -> None:
     """Re-initialise the actor, the critics and their targets as ``nn.Linear`` does."""
     torch.manual_seed(seed)
@@ -281,6 +329,7 @@ def main() -> None:
         "--update", action="store_true", help="compare one update's gradients with SB3's"
     )
     p.add_argument("--init", choices=("orthogonal", "torch"), help="learning curve with this init")
+    p.add_argument("--data", action="store_true", help="a real run's data and Polyak step")
     p.add_argument("--sb3-curve", action="store_true", help="SB3's TD3 learning curve")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--steps", type=int, default=100_000)
@@ -292,8 +341,10 @@ def main() -> None:
         init(args)
     elif args.sb3_curve:
         sb3_curve(args)
+    elif args.data:
+        data(args)
     else:
-        p.error("give --update, --init or --sb3-curve")
+        p.error("give --update, --data, --init or --sb3-curve")
 
 
 if __name__ == "__main__":

@@ -170,11 +170,16 @@ def test_sac_update_is_the_autograd_update() -> None:
 
 
 def test_td3_update_is_the_autograd_update() -> None:
-    """Two hand-written TD3 updates (the second with the delayed actor step) equal autograd's."""
+    """50 hand-written TD3 updates equal autograd's with torch's own Adam step.
+
+    Many updates, not one: the fast path's cached flat views (the optimizers' one-tensor
+    step, the Polyak averages' whole tensors) must keep following the parameters, and the
+    delayed actor step must come every ``policy_delay`` updates.
+    """
     agent = pl.deep.TD3("Pendulum-v1", seed=0, hidden=(16, 16), batch_size=32, learning_starts=64)
     agent.learn(100)
     ref = copy.deepcopy(agent)
-    batches = [agent.replay.sample(32) for _ in range(2)]
+    batches = [agent.replay.sample(32) for _ in range(50)]
     stats = [agent._train_step(b) for b in batches]
     cfg = ref.config
     for i, batch in enumerate(batches):
@@ -201,7 +206,7 @@ def test_td3_update_is_the_autograd_update() -> None:
                 cfg.tau,
             )
             torch.testing.assert_close(stats[i]["actor_loss"], actor_loss.detach())
-    assert "actor_loss" in stats[0] or "actor_loss" in stats[1]
+    assert sum("actor_loss" in s for s in stats) == 25
     for name in ("actor", "actor_target", "critic", "critic_target"):
         for p, r in zip(
             getattr(agent, name).parameters(), getattr(ref, name).parameters(), strict=True

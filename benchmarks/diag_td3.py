@@ -22,6 +22,10 @@ weights, zero biases) or as PyTorch's ``nn.Linear`` does (weights and biases uni
 every 20,000 steps, each time with a probe of the actor's saturation and the critic's
 values (see ``_Curve``); one JSON line per run is appended to ``--results``.
 
+``--updates N``: N updates of policylab's TD3 (64x64 networks, HalfCheetah data)
+against the same updates by autograd, torch's own Adam step and a plain Polyak average
+(``many``).
+
 ``--sb3-curve --seed S --steps N``: the same learning curve of SB3's TD3, trained as in
 the quality table (``bench_continuous._sb3_model``).
 
@@ -323,6 +327,58 @@ def sb3_curve(args: argparse.Namespace) -> None:
     curve.write(args.results, lib="SB3", init="torch")
 
 
+def many(args: argparse.Namespace) -> None:
+    """policylab's TD3 update against autograd with torch's own Adam step, many updates.
+
+    A copy of the agent takes the same minibatches and target noise through autograd,
+    ``optimizer.step()`` and a plain Polyak average; prints the largest relative
+    difference of any parameter tensor every 50 updates.
+    """
+    import copy
+
+    from policylab.deep.common.losses import clipped_double_q_targets, twin_q_loss
+    from policylab.deep.common.off_policy import polyak_update
+    from policylab.deep.td3.losses import smoothed_target_actions, td3_actor_loss
+
+    torch.set_num_threads(1)
+    agent = pl.deep.TD3(ENV_ID, seed=0, hidden=(64, 64), batch_size=64, learning_starts=200)
+    agent.learn(400)  # past learning_starts: the optimizers have state
+    ref = copy.deepcopy(agent)
+    cfg = ref.config
+    names = ("actor", "actor_target", "critic", "critic_target")
+    for i in range(args.updates):
+        batch = agent.replay.sample(64)
+        agent._train_step(batch)
+        obs, actions, rewards, next_obs, discounts = ref._batch_tensors(batch)
+        noise = cfg.target_policy_noise * torch.randn(actions.shape, generator=ref.torch_gen)
+        with torch.no_grad():
+            a2 = smoothed_target_actions(ref.actor_target(next_obs), noise, cfg.target_noise_clip)
+            y = clipped_double_q_targets(rewards, discounts, ref.critic_target(next_obs, a2))
+        ref.critic_optimizer.zero_grad()
+        twin_q_loss(ref.critic(obs, actions), y).backward()
+        ref.critic_optimizer.step()
+        ref.n_updates += 1
+        if ref.n_updates % cfg.policy_delay == 0:
+            detached = [p.detach()[:1] for p in ref.critic.parameters()]
+            ref.actor_optimizer.zero_grad()
+            td3_actor_loss(ref.critic(obs, ref.actor(obs), detached)[0]).backward()
+            ref.actor_optimizer.step()
+            polyak_update(
+                ref._actor_target_params + ref._target_params,
+                ref._actor_params + ref._critic_params,
+                cfg.tau,
+            )
+        if (i + 1) % 50 == 0:
+            rel = max(
+                float((p - r).norm() / r.norm())
+                for name in names
+                for p, r in zip(
+                    getattr(agent, name).parameters(), getattr(ref, name).parameters(), strict=True
+                )
+            )
+            print(f"update {i + 1}: largest relative parameter difference {rel:.2e}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument(
@@ -331,6 +387,9 @@ def main() -> None:
     p.add_argument("--init", choices=("orthogonal", "torch"), help="learning curve with this init")
     p.add_argument("--data", action="store_true", help="a real run's data and Polyak step")
     p.add_argument("--sb3-curve", action="store_true", help="SB3's TD3 learning curve")
+    p.add_argument(
+        "--updates", type=int, help="this many updates against autograd's (64x64 networks)"
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--steps", type=int, default=100_000)
     p.add_argument("--results", help="append the curve (--init, --sb3-curve) to this file")
@@ -343,8 +402,10 @@ def main() -> None:
         sb3_curve(args)
     elif args.data:
         data(args)
+    elif args.updates:
+        many(args)
     else:
-        p.error("give --update, --data, --init or --sb3-curve")
+        p.error("give --update, --data, --init, --sb3-curve or --updates")
 
 
 if __name__ == "__main__":

@@ -22,9 +22,9 @@ weights, zero biases) or as PyTorch's ``nn.Linear`` does (weights and biases uni
 every 20,000 steps, each time with a probe of the actor's saturation and the critic's
 values (see ``_Curve``); one JSON line per run is appended to ``--results``.
 
-``--updates N``: N updates of policylab's TD3 (64x64 networks, HalfCheetah data)
-against the same updates by autograd, torch's own Adam step and a plain Polyak average
-(``many``).
+``--gap``: from the stored results (``benchmarks/results``), the table of the 200k
+curves with their probes at 200k, and exact one-sided permutation tests of SB3's mean
+return above policylab's (the quality table's seeds, then with the curves' 200k points).
 
 ``--sb3-curve --seed S --steps N``: the same learning curve of SB3's TD3, trained as in
 the quality table (``bench_continuous._sb3_model``).
@@ -41,8 +41,10 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import torch
 
@@ -168,7 +170,7 @@ def data(args: argparse.Namespace) -> None:
     agent = pl.deep.TD3(ENV_ID, seed=args.seed, hidden=(400, 300), learning_starts=2_000)
     agent.learn(2_100)
     rb, n = agent.replay, agent.replay.size
-    env = __import__("gymnasium").make(ENV_ID)
+    env = gym.make(ENV_ID)
     env.reset(seed=0)
     sim = env.unwrapped
     reward_err = obs_err = 0.0
@@ -199,10 +201,11 @@ def data(args: argparse.Namespace) -> None:
             new, theta = (
                 torch.cat([p.detach().reshape(-1) for p in ps]) for ps in (target, online)
             )
-            err = float((new - (0.995 * old + 0.005 * theta)).norm())
+            tau = agent.config.tau
+            err = float((new - ((1 - tau) * old + tau * theta)).norm())
             print(
                 f"update {agent.n_updates}, {name} target: moved {float((new - old).norm()):.1e}, "
-                f"off 0.995 theta' + 0.005 theta by {err:.1e}"
+                f"off (1 - tau) theta' + tau theta by {err:.1e}"
             )
 
 
@@ -256,17 +259,11 @@ class _Curve:
         with torch.no_grad():
             pre, q = probe(obs.float())
         saturated = float((torch.tanh(pre).abs() > 0.99).float().mean())
-        self.probes.append(
-            (
-                steps,
-                round(saturated, 4),
-                round(float(pre.abs().mean()), 3),
-                round(float(q.mean()), 1),
-            )
-        )
+        size, q_mean = float(pre.abs().mean()), float(q.mean())
+        self.probes.append((steps, round(saturated, 4), round(size, 3), round(q_mean, 1)))
         print(
             f"{self.label} seed {self.seed} step {steps}: {ret:.1f} (saturated {saturated:.3f}, "
-            f"|pre-tanh| {float(pre.abs().mean()):.2f}, Q {float(q.mean()):.1f}; "
+            f"|pre-tanh| {size:.2f}, Q {q_mean:.1f}; "
             f"{time.perf_counter() - self.start:.0f} s)",
             flush=True,
         )
@@ -327,56 +324,52 @@ def sb3_curve(args: argparse.Namespace) -> None:
     curve.write(args.results, lib="SB3", init="torch")
 
 
-def many(args: argparse.Namespace) -> None:
-    """policylab's TD3 update against autograd with torch's own Adam step, many updates.
+def _exact_p(better: list[float], worse: list[float]) -> float:
+    """One-sided exact permutation p-value of mean(better) - mean(worse) under no difference."""
+    from scipy.stats import permutation_test
 
-    A copy of the agent takes the same minibatches and target noise through autograd,
-    ``optimizer.step()`` and a plain Polyak average; prints the largest relative
-    difference of any parameter tensor every 50 updates.
-    """
-    import copy
+    def diff(x: np.ndarray, y: np.ndarray, axis: int) -> np.ndarray:
+        return np.mean(x, axis=axis) - np.mean(y, axis=axis)  # type: ignore[no-any-return]
 
-    from policylab.deep.common.losses import clipped_double_q_targets, twin_q_loss
-    from policylab.deep.common.off_policy import polyak_update
-    from policylab.deep.td3.losses import smoothed_target_actions, td3_actor_loss
+    res = permutation_test(
+        (better, worse), diff, permutation_type="independent", alternative="greater",
+        n_resamples=np.inf, vectorized=True,
+    )  # fmt: skip
+    return float(res.pvalue)
 
-    torch.set_num_threads(1)
-    agent = pl.deep.TD3(ENV_ID, seed=0, hidden=(64, 64), batch_size=64, learning_starts=200)
-    agent.learn(400)  # past learning_starts: the optimizers have state
-    ref = copy.deepcopy(agent)
-    cfg = ref.config
-    names = ("actor", "actor_target", "critic", "critic_target")
-    for i in range(args.updates):
-        batch = agent.replay.sample(64)
-        agent._train_step(batch)
-        obs, actions, rewards, next_obs, discounts = ref._batch_tensors(batch)
-        noise = cfg.target_policy_noise * torch.randn(actions.shape, generator=ref.torch_gen)
-        with torch.no_grad():
-            a2 = smoothed_target_actions(ref.actor_target(next_obs), noise, cfg.target_noise_clip)
-            y = clipped_double_q_targets(rewards, discounts, ref.critic_target(next_obs, a2))
-        ref.critic_optimizer.zero_grad()
-        twin_q_loss(ref.critic(obs, actions), y).backward()
-        ref.critic_optimizer.step()
-        ref.n_updates += 1
-        if ref.n_updates % cfg.policy_delay == 0:
-            detached = [p.detach()[:1] for p in ref.critic.parameters()]
-            ref.actor_optimizer.zero_grad()
-            td3_actor_loss(ref.critic(obs, ref.actor(obs), detached)[0]).backward()
-            ref.actor_optimizer.step()
-            polyak_update(
-                ref._actor_target_params + ref._target_params,
-                ref._actor_params + ref._critic_params,
-                cfg.tau,
-            )
-        if (i + 1) % 50 == 0:
-            rel = max(
-                float((p - r).norm() / r.norm())
-                for name in names
-                for p, r in zip(
-                    getattr(agent, name).parameters(), getattr(ref, name).parameters(), strict=True
-                )
-            )
-            print(f"update {i + 1}: largest relative parameter difference {rel:.2e}")
+
+def gap(args: argparse.Namespace) -> None:
+    """The 200k curves' table and the permutation tests of the TD3 gap, from stored results."""
+    results = Path(__file__).parent / "results"
+    curves = [json.loads(x) for x in (results / "td3-curves-200k.jsonl").read_text().splitlines()]
+    print(
+        "| run | seed | 40k | 80k | 120k | 160k | 200k | share saturated | mean abs(pre-tanh) "
+        "| mean Q_1(s, mu(s)) |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    )
+    for r in sorted(curves, key=lambda r: (r["lib"], r["seed"])):
+        at = dict(r["curve"])
+        saturated, pre, q = {s: rest for s, *rest in r["probe"]}[200_000]
+        init = {"torch": "PyTorch's", "orthogonal": "orthogonal"}[r["init"]]
+        name = "SB3" if r["lib"] == "SB3" else f"policylab, {init} init"
+        cells = " | ".join(f"{at[k]:.1f}" for k in (40_000, 80_000, 120_000, 160_000, 200_000))
+        print(f"| {name} | {r['seed']} | {cells} | {saturated:.2f} | {pre:.2f} | {q:.1f} |")
+    table: dict[str, list[float]] = {"policylab": [], "SB3": []}
+    for line in (results / "quality-200k.jsonl").read_text().splitlines():
+        r = json.loads(line)
+        if (r["env"], r["algo"], r["steps"]) == (ENV_ID, "td3", 200_000):
+            table[r["lib"]].append(round(r["mean_return"], 1))
+    ends = {k: [dict(r["curve"])[200_000] for r in curves if r["lib"] == k] for k in table}
+    sb3_all, ours_all = table["SB3"] + ends["SB3"], table["policylab"] + ends["policylab"]
+    for label, sb3, ours in (
+        ("the table's seeds", table["SB3"], table["policylab"]),
+        ("with SB3's curve seeds", sb3_all, table["policylab"]),
+        ("and policylab's curve runs", sb3_all, ours_all),
+    ):
+        p = _exact_p(sb3, ours)
+        print(
+            f"{label}: SB3 {np.mean(sb3):.1f} ({len(sb3)}) against policylab {np.mean(ours):.1f} "
+            f"({len(ours)}); exact one-sided permutation p = {p:.3f}"
+        )
 
 
 def main() -> None:
@@ -388,7 +381,7 @@ def main() -> None:
     p.add_argument("--data", action="store_true", help="a real run's data and Polyak step")
     p.add_argument("--sb3-curve", action="store_true", help="SB3's TD3 learning curve")
     p.add_argument(
-        "--updates", type=int, help="this many updates against autograd's (64x64 networks)"
+        "--gap", action="store_true", help="the 200k curves' table and the gap's p-values"
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--steps", type=int, default=100_000)
@@ -402,10 +395,10 @@ def main() -> None:
         sb3_curve(args)
     elif args.data:
         data(args)
-    elif args.updates:
-        many(args)
+    elif args.gap:
+        gap(args)
     else:
-        p.error("give --update, --data, --init, --sb3-curve or --updates")
+        p.error("give --update, --data, --init, --sb3-curve or --gap")
 
 
 if __name__ == "__main__":

@@ -13,7 +13,9 @@ Quality (``--pendulum``): policylab's SAC and TD3 with the zoo's Pendulum-v1 set
 for 20k steps, on ``--seeds`` seeds, evaluated greedily on ``--episodes`` episodes (750,
 the zoo's protocol of 150,000 evaluation steps); ``--sb3`` trains SB3 alongside.
 ``--quality ENV_ID --budget N`` does the same on a MuJoCo walker with the zoo's settings
-for it (10 evaluation episodes by default).
+for it (10 evaluation episodes by default). ``--summarize FILE`` tabulates such runs: the
+mean over seeds with its bootstrap interval, and where both libraries ran, policylab
+against SB3 (difference of means, probability of improvement, exact permutation tests).
 
     python benchmarks/bench_continuous.py                  # the speed table
     python benchmarks/bench_continuous.py --pendulum       # the Pendulum-v1 table
@@ -479,6 +481,43 @@ def summarize(args: argparse.Namespace) -> None:
             f"| {env} | {algo} | {lib} | {steps:,} | {len(rets)} | {np.mean(rets):.1f} "
             f"| [{lo:.1f}, {hi:.1f}] | {', '.join(f'{x:.1f}' for x in rets)} |"
         )
+    print(
+        "\nWhere both libraries have runs: the difference of the means, the probability of"
+        " improvement P(policylab > SB3) over seed pairs (ties count half), and exact"
+        " one-sided permutation p-values of each library's mean being above the other's"
+        " (all splits of the pooled returns).\n\n"
+        "| env | algorithm | env steps | seeds (policylab, SB3) | policylab - SB3 "
+        "| P(policylab > SB3) | p, policylab above | p, SB3 above |\n"
+        "|---|---|---:|---|---:|---:|---:|---:|"
+    )
+    for (env, algo, lib, steps), ours in sorted(runs.items()):
+        theirs = runs.get((env, algo, "SB3", steps))
+        if lib != "policylab" or not theirs:
+            continue
+        improvement = pl.stats.probability_of_improvement(ours, theirs)
+        print(
+            f"| {env} | {algo} | {steps:,} | {len(ours)}, {len(theirs)} "
+            f"| {np.mean(ours) - np.mean(theirs):+.1f} | {improvement:.2f} "
+            f"| {exact_p(ours, theirs):.3f} | {exact_p(theirs, ours):.3f} |"
+        )
+
+
+def exact_p(higher: list[float], lower: list[float]) -> float:
+    """One-sided exact permutation p-value of mean(higher) - mean(lower) under no difference.
+
+    The share of all splits of the pooled values into groups of these sizes whose
+    difference of means is at least the observed one (scipy's ``permutation_test``).
+    """
+    from scipy.stats import permutation_test
+
+    def diff(x: np.ndarray, y: np.ndarray, axis: int) -> np.ndarray:
+        return np.mean(x, axis=axis) - np.mean(y, axis=axis)  # type: ignore[no-any-return]
+
+    res = permutation_test(
+        (higher, lower), diff, permutation_type="independent", alternative="greater",
+        n_resamples=np.inf, vectorized=True,
+    )  # fmt: skip
+    return float(res.pvalue)
 
 
 def walker(args: argparse.Namespace) -> None:
@@ -556,7 +595,8 @@ def main() -> None:
     p.add_argument("--results", help="append each --quality run's result to this JSON-lines file")
     p.add_argument(
         "--summarize", nargs="+", metavar="FILE",
-        help="instead: mean and bootstrap interval over seeds of --results files",
+        help="instead: mean and bootstrap interval over seeds of --results files, and "
+        "policylab against SB3 where both have runs (P(policylab > SB3), permutation tests)",
     )  # fmt: skip
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--seed-list", type=int, nargs="+", help="these seeds instead of --seeds")

@@ -324,22 +324,10 @@ def sb3_curve(args: argparse.Namespace) -> None:
     curve.write(args.results, lib="SB3", init="torch")
 
 
-def _exact_p(better: list[float], worse: list[float]) -> float:
-    """One-sided exact permutation p-value of mean(better) - mean(worse) under no difference."""
-    from scipy.stats import permutation_test
-
-    def diff(x: np.ndarray, y: np.ndarray, axis: int) -> np.ndarray:
-        return np.mean(x, axis=axis) - np.mean(y, axis=axis)  # type: ignore[no-any-return]
-
-    res = permutation_test(
-        (better, worse), diff, permutation_type="independent", alternative="greater",
-        n_resamples=np.inf, vectorized=True,
-    )  # fmt: skip
-    return float(res.pvalue)
-
-
 def gap(args: argparse.Namespace) -> None:
     """The 200k curves' table and the permutation tests of the TD3 gap, from stored results."""
+    from bench_continuous import exact_p
+
     results = Path(__file__).parent / "results"
     curves = [json.loads(x) for x in (results / "td3-curves-200k.jsonl").read_text().splitlines()]
     print(
@@ -365,7 +353,7 @@ def gap(args: argparse.Namespace) -> None:
         ("with SB3's curve seeds", sb3_all, table["policylab"]),
         ("and policylab's curve runs", sb3_all, ours_all),
     ):
-        p = _exact_p(sb3, ours)
+        p = exact_p(sb3, ours)
         print(
             f"{label}: SB3 {np.mean(sb3):.1f} ({len(sb3)}) against policylab {np.mean(ours):.1f} "
             f"({len(ours)}); exact one-sided permutation p = {p:.3f}"

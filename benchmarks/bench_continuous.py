@@ -465,11 +465,16 @@ def summarize(args: argparse.Namespace) -> None:
     import policylab as pl
 
     runs: dict[tuple[str, str, str, int], list[float]] = {}
+    seen: dict[tuple[str, str, str, int, int], str] = {}
     for path in args.summarize:
-        for line in Path(path).read_text().splitlines():
+        for number, line in enumerate(Path(path).read_text().splitlines(), 1):
             if line.strip():
                 r = json.loads(line)
                 key = (r["env"], r["algo"].upper(), r["lib"], int(r["steps"]))
+                where, run = f"{path}, line {number}", (*key, int(r["seed"]))
+                if run in seen:
+                    sys.exit(f"{where}: seed {r['seed']} of {key} again (first: {seen[run]})")
+                seen[run] = where
                 runs.setdefault(key, []).append(float(r["mean_return"]))
     print(
         "| env | algorithm | library | env steps | seeds | mean return | 95% bootstrap interval "
@@ -498,17 +503,21 @@ def summarize(args: argparse.Namespace) -> None:
         print(
             f"| {env} | {algo} | {steps:,} | {len(ours)}, {len(theirs)} "
             f"| {np.mean(ours) - np.mean(theirs):+.1f} | {improvement:.2f} "
-            f"| {exact_p(ours, theirs):.3f} | {exact_p(theirs, ours):.3f} |"
+            f"| {exact_p(ours, theirs)} | {exact_p(theirs, ours)} |"
         )
 
 
-def exact_p(higher: list[float], lower: list[float]) -> float:
+def exact_p(higher: list[float], lower: list[float]) -> str:
     """One-sided exact permutation p-value of mean(higher) - mean(lower) under no difference.
 
     The share of all splits of the pooled values into groups of these sizes whose
-    difference of means is at least the observed one (scipy's ``permutation_test``).
+    difference of means is at least the observed one (scipy's ``permutation_test``),
+    to 3 decimals; "-" while a group has fewer than 2 values.
     """
     from scipy.stats import permutation_test
+
+    if min(len(higher), len(lower)) < 2:
+        return "-"
 
     def diff(x: np.ndarray, y: np.ndarray, axis: int) -> np.ndarray:
         return np.mean(x, axis=axis) - np.mean(y, axis=axis)  # type: ignore[no-any-return]
@@ -517,7 +526,7 @@ def exact_p(higher: list[float], lower: list[float]) -> float:
         (higher, lower), diff, permutation_type="independent", alternative="greater",
         n_resamples=np.inf, vectorized=True,
     )  # fmt: skip
-    return float(res.pvalue)
+    return f"{float(res.pvalue):.3f}"
 
 
 def walker(args: argparse.Namespace) -> None:

@@ -356,7 +356,7 @@ def gap(args: argparse.Namespace) -> None:
         p = exact_p(sb3, ours)
         print(
             f"{label}: SB3 {np.mean(sb3):.1f} ({len(sb3)}) against policylab {np.mean(ours):.1f} "
-            f"({len(ours)}); exact one-sided permutation p = {p:.3f}"
+            f"({len(ours)}); exact one-sided permutation p = {p}"
         )
 
 

@@ -460,13 +460,15 @@ def quality(args: argparse.Namespace) -> None:
         )
 
 
-def summarize(args: argparse.Namespace) -> None:
-    """Mean return over seeds and its 95% bootstrap interval, from --results files."""
-    import policylab as pl
+def read_runs(paths: list[str] | list[Path]) -> dict[tuple[str, str, str, int], list[float]]:
+    """The mean returns of --results files by (env, ALGO, library, steps), in file order.
 
+    Exits naming the file and both lines when a seed of the same (env, algorithm,
+    library, steps) is listed twice.
+    """
     runs: dict[tuple[str, str, str, int], list[float]] = {}
     seen: dict[tuple[str, str, str, int, int], str] = {}
-    for path in args.summarize:
+    for path in paths:
         for number, line in enumerate(Path(path).read_text().splitlines(), 1):
             if line.strip():
                 r = json.loads(line)
@@ -476,6 +478,14 @@ def summarize(args: argparse.Namespace) -> None:
                     sys.exit(f"{where}: seed {r['seed']} of {key} again (first: {seen[run]})")
                 seen[run] = where
                 runs.setdefault(key, []).append(float(r["mean_return"]))
+    return runs
+
+
+def summarize(args: argparse.Namespace) -> None:
+    """Mean return over seeds and its 95% bootstrap interval, from --results files."""
+    import policylab as pl
+
+    runs = read_runs(args.summarize)
     print(
         "| env | algorithm | library | env steps | seeds | mean return | 95% bootstrap interval "
         "| per seed |\n|---|---|---|---:|---:|---:|---|---|"
@@ -503,21 +513,25 @@ def summarize(args: argparse.Namespace) -> None:
         print(
             f"| {env} | {algo} | {steps:,} | {len(ours)}, {len(theirs)} "
             f"| {np.mean(ours) - np.mean(theirs):+.1f} | {improvement:.2f} "
-            f"| {exact_p(ours, theirs)} | {exact_p(theirs, ours)} |"
+            f"| {_p_cell(exact_p(ours, theirs))} | {_p_cell(exact_p(theirs, ours))} |"
         )
 
 
-def exact_p(higher: list[float], lower: list[float]) -> str:
+def _p_cell(p: float | None) -> str:
+    return "-" if p is None else f"{p:.3f}"
+
+
+def exact_p(higher: list[float], lower: list[float]) -> float | None:
     """One-sided exact permutation p-value of mean(higher) - mean(lower) under no difference.
 
     The share of all splits of the pooled values into groups of these sizes whose
-    difference of means is at least the observed one (scipy's ``permutation_test``),
-    to 3 decimals; "-" while a group has fewer than 2 values.
+    difference of means is at least the observed one (scipy's ``permutation_test``);
+    None while a group has fewer than 2 values.
     """
     from scipy.stats import permutation_test
 
     if min(len(higher), len(lower)) < 2:
-        return "-"
+        return None
 
     def diff(x: np.ndarray, y: np.ndarray, axis: int) -> np.ndarray:
         return np.mean(x, axis=axis) - np.mean(y, axis=axis)  # type: ignore[no-any-return]
@@ -526,7 +540,7 @@ def exact_p(higher: list[float], lower: list[float]) -> str:
         (higher, lower), diff, permutation_type="independent", alternative="greater",
         n_resamples=np.inf, vectorized=True,
     )  # fmt: skip
-    return f"{float(res.pvalue):.3f}"
+    return float(res.pvalue)
 
 
 def walker(args: argparse.Namespace) -> None:

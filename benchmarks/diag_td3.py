@@ -326,7 +326,7 @@ def sb3_curve(args: argparse.Namespace) -> None:
 
 def gap(args: argparse.Namespace) -> None:
     """The 200k curves' table and the permutation tests of the TD3 gap, from stored results."""
-    from bench_continuous import exact_p
+    from bench_continuous import exact_p, read_runs
 
     results = Path(__file__).parent / "results"
     curves = [json.loads(x) for x in (results / "td3-curves-200k.jsonl").read_text().splitlines()]
@@ -341,11 +341,10 @@ def gap(args: argparse.Namespace) -> None:
         name = "SB3" if r["lib"] == "SB3" else f"policylab, {init} init"
         cells = " | ".join(f"{at[k]:.1f}" for k in (40_000, 80_000, 120_000, 160_000, 200_000))
         print(f"| {name} | {r['seed']} | {cells} | {saturated:.2f} | {pre:.2f} | {q:.1f} |")
-    table: dict[str, list[float]] = {"policylab": [], "SB3": []}
-    for line in (results / "quality-200k.jsonl").read_text().splitlines():
-        r = json.loads(line)
-        if (r["env"], r["algo"], r["steps"]) == (ENV_ID, "td3", 200_000):
-            table[r["lib"]].append(round(r["mean_return"], 1))
+    runs = read_runs([results / "quality-200k.jsonl"])
+    table = {
+        k: [round(x, 1) for x in runs[ENV_ID, "TD3", k, 200_000]] for k in ("policylab", "SB3")
+    }
     ends = {k: [dict(r["curve"])[200_000] for r in curves if r["lib"] == k] for k in table}
     sb3_all, ours_all = table["SB3"] + ends["SB3"], table["policylab"] + ends["policylab"]
     for label, sb3, ours in (
@@ -356,7 +355,7 @@ def gap(args: argparse.Namespace) -> None:
         p = exact_p(sb3, ours)
         print(
             f"{label}: SB3 {np.mean(sb3):.1f} ({len(sb3)}) against policylab {np.mean(ours):.1f} "
-            f"({len(ours)}); exact one-sided permutation p = {p}"
+            f"({len(ours)}); exact one-sided permutation p = {p:.3f}"
         )
 
 

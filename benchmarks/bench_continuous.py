@@ -16,10 +16,13 @@ the zoo's protocol of 150,000 evaluation steps); ``--sb3`` trains SB3 alongside.
 for it (10 evaluation episodes by default). ``--summarize FILE`` tabulates such runs: the
 mean over seeds with its bootstrap interval, and where both libraries ran, policylab
 against SB3 (difference of means, probability of improvement, exact permutation tests).
+``--fill FILE`` runs what such a table still lacks: each (env, algorithm, library, seed)
+run missing from FILE, one process pinned to each core, appending as each finishes.
 
     python benchmarks/bench_continuous.py                  # the speed table
     python benchmarks/bench_continuous.py --pendulum       # the Pendulum-v1 table
     python benchmarks/bench_continuous.py --quality Hopper-v5 --budget 200000 --sb3
+    python benchmarks/bench_continuous.py --fill benchmarks/results/quality-200k.jsonl
     python benchmarks/bench_continuous.py --per-update 60  # single updates, alternating
     python benchmarks/bench_continuous.py --walker runs/walker-walking  # how a walker walks
 
@@ -43,13 +46,12 @@ import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import machine, processor, write_section
-
-warnings.filterwarnings("ignore")
 
 NETS = {"sac": (256, 256), "td3": (400, 300)}
 
@@ -460,25 +462,125 @@ def quality(args: argparse.Namespace) -> None:
         )
 
 
-def read_runs(paths: list[str] | list[Path]) -> dict[tuple[str, str, str, int], list[float]]:
-    """The mean returns of --results files by (env, ALGO, library, steps), in file order.
+def read_records(paths: list[str] | list[Path]) -> list[dict[str, Any]]:
+    """The runs of --results files (one JSON object a line), in file order.
 
     Exits naming the file and both lines when a seed of the same (env, algorithm,
     library, steps) is listed twice.
     """
-    runs: dict[tuple[str, str, str, int], list[float]] = {}
+    records: list[dict[str, Any]] = []
     seen: dict[tuple[str, str, str, int, int], str] = {}
     for path in paths:
         for number, line in enumerate(Path(path).read_text().splitlines(), 1):
             if line.strip():
                 r = json.loads(line)
-                key = (r["env"], r["algo"].upper(), r["lib"], int(r["steps"]))
-                where, run = f"{path}, line {number}", (*key, int(r["seed"]))
+                run = (r["env"], r["algo"].upper(), r["lib"], int(r["steps"]), int(r["seed"]))
+                where = f"{path}, line {number}"
                 if run in seen:
-                    sys.exit(f"{where}: seed {r['seed']} of {key} again (first: {seen[run]})")
+                    sys.exit(f"{where}: seed {r['seed']} of {run[:4]} again (first: {seen[run]})")
                 seen[run] = where
-                runs.setdefault(key, []).append(float(r["mean_return"]))
+                records.append(r)
+    return records
+
+
+def read_runs(paths: list[str] | list[Path]) -> dict[tuple[str, str, str, int], list[float]]:
+    """The mean returns of --results files by (env, ALGO, library, steps), in file order."""
+    runs: dict[tuple[str, str, str, int], list[float]] = {}
+    for r in read_records(paths):
+        key = (r["env"], r["algo"].upper(), r["lib"], int(r["steps"]))
+        runs.setdefault(key, []).append(float(r["mean_return"]))
     return runs
+
+
+WALKERS = ("HalfCheetah-v5", "Hopper-v5", "Walker2d-v5")
+
+
+def missing_runs(
+    path: str | Path,
+    envs: list[str],
+    algos: list[str],
+    libs: list[str],
+    seeds: list[int],
+    steps: int,
+) -> list[tuple[str, str, str, int]]:
+    """The (env, algo, library, seed) quality runs of ``steps`` env steps not yet in ``path``.
+
+    In the order an interrupted queue leaves the most to compare: env by env, seed by
+    seed, each algorithm's SB3 run before policylab's (SB3's take longer). A missing
+    ``path`` has no runs yet.
+    """
+    done = {
+        (r["env"], r["algo"].lower(), r["lib"], int(r["seed"]))
+        for r in (read_records([path]) if Path(path).exists() else [])
+        if int(r["steps"]) == steps
+    }
+    return [
+        (env, algo, lib, seed)
+        for env in envs
+        for seed in seeds
+        for algo in algos
+        for lib in sorted(libs, key=lambda lib: lib != "SB3")
+        if (env, algo, lib, seed) not in done
+    ]
+
+
+def fill(args: argparse.Namespace) -> None:
+    """Run the quality runs missing from ``args.fill``, one process pinned to each core."""
+    results = Path(args.fill)
+    steps = int(args.budget or 200_000)
+    seeds = args.seed_list or list(range(args.seeds))
+    queue = missing_runs(
+        results, args.envs, args.algos, args.libs or ["policylab", "SB3"], seeds, steps
+    )
+    cores = args.cores or sorted(os.sched_getaffinity(0))
+    logs = Path(args.log_dir)
+    print(
+        f"{len(queue)} runs of {steps:,} env steps missing from {results}; "
+        f"one at a time on each of cores {', '.join(map(str, cores))}; logs in {logs}/",
+        *(" ".join(map(str, run)) for run in queue),
+        sep="\n  ",
+        flush=True,
+    )
+    if args.dry_run:
+        return
+    logs.mkdir(parents=True, exist_ok=True)
+    running: dict[int, tuple[subprocess.Popen[bytes], tuple[str, str, str, int], float]] = {}
+    failed = 0
+    while queue or running:
+        for core in cores:
+            if core not in running and queue:
+                env, algo, lib, seed = run = queue.pop(0)
+                command = [
+                    sys.executable, __file__, "--quality", env, "--budget", str(steps),
+                    "--algos", algo, "--libs", lib, "--seed-list", str(seed),
+                    "--episodes", str(args.episodes), "--no-write", "--results", str(results),
+                ]  # fmt: skip
+                log = (logs / f"{env}-{algo}-{lib}-{seed}.log").open("wb")
+                proc = subprocess.Popen(
+                    command, stdout=log, stderr=subprocess.STDOUT,
+                    preexec_fn=lambda core=core: os.sched_setaffinity(0, {core}),
+                )  # fmt: skip
+                log.close()
+                running[core] = (proc, run, time.perf_counter())
+                print(
+                    f"{time.strftime('%H:%M:%S')} core {core}: start {' '.join(map(str, run))}",
+                    flush=True,
+                )
+        time.sleep(args.poll)
+        for core, (proc, run, start) in list(running.items()):
+            if proc.poll() is not None:
+                del running[core]
+                minutes = (time.perf_counter() - start) / 60
+                status = "done" if proc.returncode == 0 else f"FAILED (exit {proc.returncode})"
+                failed += proc.returncode != 0
+                print(
+                    f"{time.strftime('%H:%M:%S')} core {core}: {status} "
+                    f"{' '.join(map(str, run))} in {minutes:.0f} min",
+                    flush=True,
+                )
+    if failed:
+        sys.exit(f"{failed} runs failed; their logs are in {logs}/")
+    summarize(argparse.Namespace(summarize=[results]))
 
 
 def summarize(args: argparse.Namespace) -> None:
@@ -602,6 +704,7 @@ def walker(args: argparse.Namespace) -> None:
 
 
 def main() -> None:
+    warnings.filterwarnings("ignore")  # both libraries' deprecation chatter, in long runs
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--env", default="HalfCheetah-v5")
     p.add_argument("--steps", type=int, default=3000)
@@ -621,6 +724,20 @@ def main() -> None:
         help="instead: mean and bootstrap interval over seeds of --results files, and "
         "policylab against SB3 where both have runs (P(policylab > SB3), permutation tests)",
     )  # fmt: skip
+    p.add_argument(
+        "--fill", metavar="FILE",
+        help="instead: run the quality runs (--envs x --algos x --libs x seeds, --budget "
+        "steps, default 200,000) missing from FILE, one process pinned to each of --cores, "
+        "appending each result to FILE; run it again to go on after an interruption",
+    )  # fmt: skip
+    p.add_argument("--envs", nargs="+", default=list(WALKERS), help="the envs of --fill")
+    p.add_argument(
+        "--cores", type=int, nargs="+",
+        help="--fill: the CPU cores to run on, one run each (default: every core allowed)",
+    )  # fmt: skip
+    p.add_argument("--log-dir", default="runs/quality-logs", help="--fill: each run's output")
+    p.add_argument("--dry-run", action="store_true", help="--fill: list the missing runs, run none")
+    p.add_argument("--poll", type=float, default=10.0, help=argparse.SUPPRESS)
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--seed-list", type=int, nargs="+", help="these seeds instead of --seeds")
     p.add_argument("--episodes", type=int, default=750, help="evaluation episodes (--pendulum)")
@@ -642,10 +759,14 @@ def main() -> None:
     args = p.parse_args()
     if args.pendulum:
         args.quality = "Pendulum-v1"
-    if (args.walker or args.quality not in (None, "Pendulum-v1")) and args.episodes == 750:
+    if (
+        args.walker or args.fill or args.quality not in (None, "Pendulum-v1")
+    ) and args.episodes == 750:
         args.episodes = 10  # 750 is the Pendulum protocol's; a walker's episode is longer
     if args.summarize:
         summarize(args)
+    elif args.fill:
+        fill(args)
     elif args.walker:
         walker(args)
     elif args.per_update:

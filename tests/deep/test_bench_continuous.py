@@ -1,0 +1,110 @@
+"""The quality table's bookkeeping in ``benchmarks/bench_continuous.py``.
+
+Its permutation test, its refusal of a seed listed twice, and ``--fill``, which runs
+the (env, algorithm, library, seed) runs a results file still lacks.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import subprocess
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_continuous.py"
+
+
+@pytest.fixture(scope="module")
+def bench() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("bench_continuous", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    path = list(sys.path)  # the script puts benchmarks/ first on sys.path: not for the tests
+    sys.modules[spec.name] = module  # its dataclasses look their module up there
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path[:] = path
+    return module
+
+
+def _line(env: str, algo: str, lib: str, seed: int, ret: float, steps: int = 200_000) -> str:
+    run = dict(env=env, algo=algo, lib=lib, seed=seed, steps=steps, mean_return=ret)
+    return json.dumps(run) + "\n"
+
+
+def test_exact_p_counts_every_split_of_the_pooled_returns(bench: ModuleType) -> None:
+    # [3, 4] against [1, 2]: of the C(4, 2) = 6 splits only the observed one has a
+    # difference of means of 2 or more
+    assert bench.exact_p([3.0, 4.0], [1.0, 2.0]) == pytest.approx(1 / 6)
+    assert bench.exact_p([1.0, 2.0], [3.0, 4.0]) == pytest.approx(1.0)
+    # [5, 1] against [2, 3, 4] (mean difference 0): splits with a difference >= 0
+    # are those whose pair sums to 6 or more: {5,1} {5,2} {5,3} {5,4} {2,4} {3,4} of 10
+    assert bench.exact_p([5.0, 1.0], [2.0, 3.0, 4.0]) == pytest.approx(6 / 10)
+    assert bench.exact_p([1.0], [2.0, 3.0]) is None
+
+
+def test_a_seed_listed_twice_is_refused_naming_both_lines(
+    bench: ModuleType, tmp_path: Path
+) -> None:
+    path = tmp_path / "quality.jsonl"
+    path.write_text(
+        _line("Hopper-v5", "td3", "SB3", 0, 749.1)
+        + _line("Hopper-v5", "td3", "SB3", 1, 900.0)
+        + _line("Hopper-v5", "td3", "SB3", 0, 749.1)
+    )
+    with pytest.raises(SystemExit, match=r"line 3: seed 0 of .*Hopper-v5.* \(first: .*line 1\)"):
+        bench.read_runs([path])
+
+
+def test_missing_runs_skip_those_done_and_pair_the_libraries(
+    bench: ModuleType, tmp_path: Path
+) -> None:
+    path = tmp_path / "quality.jsonl"
+    assert len(bench.missing_runs(path, ["Hopper-v5"], ["sac", "td3"], ["policylab", "SB3"],
+                                  [0, 1], 200_000)) == 8  # fmt: skip
+    path.write_text(
+        _line("Hopper-v5", "td3", "SB3", 0, 749.1)
+        + _line("Hopper-v5", "TD3", "policylab", 0, 3065.2)  # the algorithm in any case
+        + _line("Hopper-v5", "sac", "SB3", 1, 3358.6, steps=100_000)  # another budget
+    )
+    missing = bench.missing_runs(
+        path, ["Hopper-v5", "Walker2d-v5"], ["sac", "td3"], ["policylab", "SB3"], [0, 1], 200_000
+    )
+    assert missing[:6] == [
+        ("Hopper-v5", "sac", "SB3", 0),
+        ("Hopper-v5", "sac", "policylab", 0),
+        ("Hopper-v5", "sac", "SB3", 1),
+        ("Hopper-v5", "sac", "policylab", 1),
+        ("Hopper-v5", "td3", "SB3", 1),
+        ("Hopper-v5", "td3", "policylab", 1),
+    ]
+    assert len(missing) == 6 + 8 and missing[6] == ("Walker2d-v5", "sac", "SB3", 0)
+
+
+def test_fill_runs_what_is_missing_once_and_a_second_fill_runs_nothing(tmp_path: Path) -> None:
+    results, logs = tmp_path / "quality.jsonl", tmp_path / "logs"
+    results.write_text(_line("Pendulum-v1", "td3", "policylab", 0, -150.0, steps=200))
+    command = [
+        sys.executable, str(SCRIPT), "--fill", str(results), "--envs", "Pendulum-v1",
+        "--algos", "td3", "--libs", "policylab", "--seed-list", "0", "1", "--budget", "200",
+        "--episodes", "1", "--cores", "0", "--log-dir", str(logs), "--poll", "0.2",
+    ]  # fmt: skip
+    out = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "1 runs of 200 env steps missing" in out.stdout
+    assert "core 0: done Pendulum-v1 td3 policylab 1" in out.stdout
+    runs = [json.loads(line) for line in results.read_text().splitlines()]
+    assert [(r["seed"], r["steps"], r.get("episodes")) for r in runs] == [
+        (0, 200, None),
+        (1, 200, 1),
+    ]
+    assert "1 of" in runs[1]["machine"]  # pinned to the one core it was given
+    assert (logs / "Pendulum-v1-td3-policylab-1.log").exists()
+    again = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0 and "0 runs of 200 env steps missing" in again.stdout
+    assert len(results.read_text().splitlines()) == 2

@@ -526,7 +526,15 @@ def missing_runs(
 
 def fill(args: argparse.Namespace) -> None:
     """Run the quality runs missing from ``args.fill``, one process pinned to each core."""
+    import fcntl
+
     results = Path(args.fill)
+    results.parent.mkdir(parents=True, exist_ok=True)
+    held = results.open("a")  # one --fill a file at a time: two would run the same runs
+    try:
+        fcntl.flock(held, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        sys.exit(f"another --fill is running on {results}; wait for it or stop it first")
     steps = int(args.budget or 200_000)
     seeds = args.seed_list or list(range(args.seeds))
     queue = missing_runs(

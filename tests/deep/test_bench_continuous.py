@@ -6,6 +6,7 @@ the (env, algorithm, library, seed) runs a results file still lacks.
 
 from __future__ import annotations
 
+import fcntl
 import importlib.util
 import json
 import subprocess
@@ -108,3 +109,15 @@ def test_fill_runs_what_is_missing_once_and_a_second_fill_runs_nothing(tmp_path:
     again = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert again.returncode == 0 and "0 runs of 200 env steps missing" in again.stdout
     assert len(results.read_text().splitlines()) == 2
+
+
+def test_a_second_fill_on_the_same_file_is_refused(tmp_path: Path) -> None:
+    results = tmp_path / "quality.jsonl"
+    with results.open("a") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)  # as a running --fill holds it
+        out = subprocess.run(
+            [sys.executable, str(SCRIPT), "--fill", str(results), "--dry-run"],
+            capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+    assert out.returncode == 1
+    assert f"another --fill is running on {results}" in out.stderr

@@ -514,12 +514,13 @@ def missing_runs(
         for r in (read_records([path]) if Path(path).exists() else [])
         if int(r["steps"]) == steps
     }
+    sb3_first = sorted(libs, key=lambda lib: lib != "SB3")
     return [
         (env, algo, lib, seed)
         for env in envs
         for seed in seeds
         for algo in algos
-        for lib in sorted(libs, key=lambda lib: lib != "SB3")
+        for lib in sb3_first
         if (env, algo, lib, seed) not in done
     ]
 

@@ -749,11 +749,15 @@ def main() -> None:
     p.add_argument("--poll", type=float, default=10.0, help=argparse.SUPPRESS)
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--seed-list", type=int, nargs="+", help="these seeds instead of --seeds")
-    p.add_argument("--episodes", type=int, default=750, help="evaluation episodes (--pendulum)")
-    p.add_argument("--sb3", action="store_true", help="also train SB3 (--pendulum)")
+    p.add_argument(
+        "--episodes", type=int, default=750,
+        help="greedy evaluation episodes of each run (default: 750 on Pendulum-v1, else 10)",
+    )  # fmt: skip
+    p.add_argument("--sb3", action="store_true", help="--quality: also train SB3")
     p.add_argument(
         "--libs", nargs="+", choices=["policylab", "SB3"],
-        help="train these libraries only (--pendulum; e.g. one library and seed per process)",
+        help="--quality, --fill: these libraries only (default: policylab, and SB3 with --sb3; "
+        "--fill: both)",
     )  # fmt: skip
     p.add_argument(
         "--per-update", type=int, default=0, metavar="N",

@@ -427,6 +427,13 @@ def quality(args: argparse.Namespace) -> None:
                 else:
                     agent = _SB3Predictor(_sb3_model(algo, env_id, seed, steps))
                 sec = time.perf_counter() - t
+                if args.save_dir:  # the final policy, for probes after the run
+                    stem = Path(args.save_dir) / f"{env_id}-{algo}-{lib}-{seed}"
+                    stem.parent.mkdir(parents=True, exist_ok=True)
+                    if lib == "policylab":
+                        agent.save(stem.with_suffix(".pt"))  # type: ignore[attr-defined]
+                    else:
+                        agent.model.save(str(stem.with_suffix(".zip")))  # type: ignore[attr-defined]
                 episodes, eval_seed = args.episodes, 1000 + seed
                 returns = pl.deep.evaluate(agent, env_id, episodes, eval_seed)  # type: ignore[arg-type]
                 ret = float(np.mean(returns))
@@ -769,6 +776,9 @@ def main() -> None:
     )  # fmt: skip
     p.add_argument("--figure", help="learning-curve file for --walker")
     p.add_argument("--no-write", dest="write", action="store_false")
+    p.add_argument(
+        "--save-dir", help="--quality: save each run's final policy in this folder (.pt, SB3 .zip)"
+    )
     args = p.parse_args()
     if args.pendulum:
         args.quality = "Pendulum-v1"

@@ -1,6 +1,6 @@
 """Where policylab's TD3 and Stable-Baselines3's could differ, measured on HalfCheetah-v5.
 
-Two checks behind the TD3 row of the 200k-step quality table (BENCHMARKS.md):
+Checks behind the TD3 row of the 200k-step quality table (BENCHMARKS.md):
 
 ``--update``: the same weights loaded into both libraries' TD3 (400x300, the zoo's
 settings), the same random minibatches fed to two updates of each, target smoothing
@@ -10,6 +10,13 @@ update (c = 2: policylab's critic loss is sum_i E[(Q_i - y)^2] / 2, SB3's the su
 two mean squared errors; Adam's step does not see the factor), and the actor's at the
 second (c = 1), with both libraries' critic optimizers switched off so that the actor's
 gradient is taken through identical critics.
+
+``--trajectory --steps N``: the same two TD3s (no target smoothing) trained for N updates
+on one stream of minibatches drawn from 20,000 steps of random play, with a third, SB3
+again with its critics' weights scaled by 1 + 1e-6, as the control: prints how far
+policylab's weights and the control's have moved from SB3's. Training is chaotic (a
+difference in the last float place grows to tens of per cent in a thousand updates), so
+a different algorithm shows as drift beyond the control's, not as drift.
 
 ``--data``: 2,100 steps of policylab's TD3 (the last 100 learning), each stored
 transition replayed from its own state (MuJoCo's ``set_state``) to compare rewards and
@@ -30,6 +37,7 @@ return above policylab's (the quality table's seeds, then with the curves' 200k 
 the quality table (``bench_continuous._sb3_model``).
 
     python benchmarks/diag_td3.py --update
+    python benchmarks/diag_td3.py --trajectory --steps 1000
     taskset -c 1 python benchmarks/diag_td3.py --sb3-curve --seed 0 --steps 200000 \
         --results benchmarks/results/td3-curves-200k.jsonl
     taskset -c 0 python benchmarks/diag_td3.py --init torch --seed 0 --steps 100000 \
@@ -88,20 +96,25 @@ def _rel(a: torch.Tensor, b: torch.Tensor) -> float:
     return float((a - b).norm() / a.norm())
 
 
-def update(args: argparse.Namespace) -> None:
-    """Both libraries' TD3 from the same weights on the same minibatches: gradients."""
+_TWIN_KW: dict[str, Any] = dict(learning_rate=1e-3, target_policy_noise=0.0)
+
+
+def _sb3_td3() -> Any:
     from stable_baselines3 import TD3 as SB3TD3
     from stable_baselines3.common.logger import configure
-    from stable_baselines3.common.type_aliases import ReplayBufferSamples
 
-    torch.set_num_threads(1)
-    kw: dict[str, Any] = dict(learning_rate=1e-3, target_policy_noise=0.0)
-    pol = pl.deep.TD3(ENV_ID, seed=0, hidden=(400, 300), learning_starts=10, **kw)
     sb = SB3TD3(
-        "MlpPolicy", ENV_ID, policy_kwargs=dict(net_arch=[400, 300]), device="cpu", seed=0, **kw
-    )
+        "MlpPolicy", ENV_ID, policy_kwargs=dict(net_arch=[400, 300]), device="cpu", seed=0,
+        **_TWIN_KW,
+    )  # fmt: skip
     sb.set_logger(configure(None, []))
-    obs_dim, m = pol.obs_dim, pol.action_dim
+    return sb
+
+
+def _twins() -> tuple[Any, Any]:
+    """policylab's TD3 and SB3's (400x300, lr 1e-3, no target smoothing), SB3's weights in both."""
+    pol = pl.deep.TD3(ENV_ID, seed=0, hidden=(400, 300), learning_starts=10, **_TWIN_KW)
+    sb = _sb3_td3()
     with torch.no_grad():
         for src, dst in ((sb.actor.mu, pol.actor.net), (sb.actor_target.mu, pol.actor_target.net)):
             for s, d in zip(_linears(src), _linears(dst), strict=True):
@@ -112,7 +125,44 @@ def update(args: argparse.Namespace) -> None:
             (sb.critic_target, pol.critic_target),
         ):
             for k, q_net in enumerate(src_critic.q_networks):
-                _set_critic(dst_critic, k, _linears(q_net), obs_dim)
+                _set_critic(dst_critic, k, _linears(q_net), pol.obs_dim)
+    return pol, sb
+
+
+def _sb3_train_on(sb: Any, o: Any, a: Any, r: Any, o2: Any, done: Any) -> None:
+    """One SB3 TD3 update on this minibatch (its replay buffer's sampler replaced)."""
+    from stable_baselines3.common.type_aliases import ReplayBufferSamples
+
+    samples = ReplayBufferSamples(
+        *(torch.as_tensor(x) for x in (o, a, o2)),
+        torch.as_tensor(done)[:, None],
+        torch.as_tensor(r)[:, None],
+    )
+    sb.replay_buffer.sample = lambda *_, s=samples, **__: s
+    sb.train(gradient_steps=1, batch_size=len(o))
+
+
+def _pl_train_on(pol: Any, o: Any, a: Any, r: Any, o2: Any, done: Any) -> None:
+    """One policylab TD3 update on this minibatch."""
+    n = len(o)
+    pol._train_step(
+        ReplayBatch(
+            indices=np.arange(n),
+            obs=o,
+            actions=a,
+            returns=r,
+            next_obs=o2,
+            discounts=(0.99 * (1 - done)).astype(np.float32),
+            weights=np.ones(n, np.float32),
+        )
+    )
+
+
+def update(args: argparse.Namespace) -> None:
+    """Both libraries' TD3 from the same weights on the same minibatches: gradients."""
+    torch.set_num_threads(1)
+    pol, sb = _twins()
+    obs_dim, m = pol.obs_dim, pol.action_dim
     rng = np.random.default_rng(args.seed)
     batch_size = 256
     for step in (1, 2):
@@ -121,24 +171,8 @@ def update(args: argparse.Namespace) -> None:
         r = rng.normal(size=batch_size).astype(np.float32)
         o2 = rng.normal(size=(batch_size, obs_dim)).astype(np.float32)
         done = (rng.uniform(size=batch_size) < 0.1).astype(np.float32)
-        samples = ReplayBufferSamples(
-            *(torch.as_tensor(x) for x in (o, a, o2)),
-            torch.as_tensor(done)[:, None],
-            torch.as_tensor(r)[:, None],
-        )
-        sb.replay_buffer.sample = lambda *_, s=samples, **__: s  # type: ignore[method-assign]
-        sb.train(gradient_steps=1, batch_size=batch_size)
-        pol._train_step(
-            ReplayBatch(
-                indices=np.arange(batch_size),
-                obs=o,
-                actions=a,
-                returns=r,
-                next_obs=o2,
-                discounts=(0.99 * (1 - done)).astype(np.float32),
-                weights=np.ones(batch_size, np.float32),
-            )
-        )
+        _sb3_train_on(sb, o, a, r, o2, done)
+        _pl_train_on(pol, o, a, r, o2, done)
         if step == 1:
             print("update 1, critics: ||g_SB3 - 2 g_policylab|| / ||g_SB3|| per layer (W, b)")
             for k, q_net in enumerate(sb.critic.q_networks):
@@ -162,6 +196,80 @@ def update(args: argparse.Namespace) -> None:
             f"  actor layer {i + 1}: {_rel(s.weight.grad, d.weight.grad):.1e}, "
             f"{_rel(s.bias.grad, d.bias.grad):.1e}"
         )
+
+
+def _weights(agent: Any) -> dict[str, list[torch.Tensor]]:
+    """Each network's weight matrices, as (in, out) for the critics, whichever library."""
+    if hasattr(agent, "critic_optimizer"):  # policylab
+        return {
+            "actor": [lin.weight for lin in _linears(agent.actor.net)],
+            "actor target": [lin.weight for lin in _linears(agent.actor_target.net)],
+            "critics": [w for k in range(2) for w, _ in _critic_layers(agent.critic, k)],
+            "critic targets": [
+                w for k in range(2) for w, _ in _critic_layers(agent.critic_target, k)
+            ],
+        }
+    return {
+        "actor": [lin.weight for lin in _linears(agent.actor.mu)],
+        "actor target": [lin.weight for lin in _linears(agent.actor_target.mu)],
+        "critics": [lin.weight.T for q in agent.critic.q_networks for lin in _linears(q)],
+        "critic targets": [
+            lin.weight.T for q in agent.critic_target.q_networks for lin in _linears(q)
+        ],
+    }
+
+
+def _drift(a: Any, b: Any) -> dict[str, float]:
+    """||W_a - W_b|| / ||W_a|| over each network's weight matrices."""
+    wa, wb = _weights(a), _weights(b)
+    out = {}
+    for name in wa:
+        num = sum(
+            float((x - y).detach().norm() ** 2) for x, y in zip(wa[name], wb[name], strict=True)
+        )
+        den = sum(float(x.detach().norm() ** 2) for x in wa[name])
+        out[name] = (num / den) ** 0.5
+    return out
+
+
+def trajectory(args: argparse.Namespace) -> None:
+    """Both TD3s trained on the same stream of minibatches; SB3 against itself as control."""
+    torch.set_num_threads(1)
+    pol, sb = _twins()
+    control = _sb3_td3()
+    control.set_parameters(sb.get_parameters())
+    with torch.no_grad():  # SB3 again, its critics' weights off by one part in a million
+        for p in control.critic.parameters():
+            p.mul_(1 + 1e-6)
+    # 20,000 steps of uniformly random play (the warm-up's data); the time limit truncates
+    env = gym.make(ENV_ID)
+    o, _ = env.reset(seed=args.seed)
+    rng = np.random.default_rng(args.seed)
+    rows: list[tuple[Any, ...]] = []
+    for _ in range(20_000):
+        a = rng.uniform(-1, 1, pol.action_dim).astype(np.float32)
+        o2, r, term, trunc, _ = env.step(a)
+        rows.append((o, a, r, o2, float(term)))
+        o = env.reset()[0] if term or trunc else o2
+    obs, acts, rews, nxt, dones = (np.asarray(c, np.float32) for c in zip(*rows, strict=True))
+    print(
+        f"{args.steps:,} updates on minibatches of 256 from 20,000 random steps: "
+        "||W_a - W_b|| / ||W_a|| per network"
+    )
+    print("| updates | pair | actor | actor target | critics | critic targets |")
+    print("|---:|---|---:|---:|---:|---:|")
+    for step in range(1, args.steps + 1):
+        i = rng.integers(0, len(obs), 256)
+        batch = (obs[i], acts[i], rews[i], nxt[i], dones[i])
+        _sb3_train_on(sb, *batch)
+        _sb3_train_on(control, *batch)
+        _pl_train_on(pol, *batch)
+        if step in (1, 2, 10, 100) or step % 500 == 0:
+            for label, other in (("SB3, policylab", pol), ("SB3, SB3 x (1 + 1e-6)", control)):
+                d = _drift(sb, other)
+                print(
+                    f"| {step:,} | {label} | " + " | ".join(f"{v:.1e}" for v in d.values()) + " |"
+                )
 
 
 def data(args: argparse.Namespace) -> None:
@@ -366,6 +474,10 @@ def main() -> None:
     )
     p.add_argument("--init", choices=("orthogonal", "torch"), help="learning curve with this init")
     p.add_argument("--data", action="store_true", help="a real run's data and Polyak step")
+    p.add_argument(
+        "--trajectory", action="store_true",
+        help="--steps updates of both on the same minibatches, against SB3's own drift",
+    )  # fmt: skip
     p.add_argument("--sb3-curve", action="store_true", help="SB3's TD3 learning curve")
     p.add_argument(
         "--gap", action="store_true", help="the 200k curves' table and the gap's p-values"
@@ -382,10 +494,12 @@ def main() -> None:
         sb3_curve(args)
     elif args.data:
         data(args)
+    elif args.trajectory:
+        trajectory(args)
     elif args.gap:
         gap(args)
     else:
-        p.error("give --update, --data, --init, --sb3-curve or --gap")
+        p.error("give --update, --trajectory, --data, --init, --sb3-curve or --gap")
 
 
 if __name__ == "__main__":

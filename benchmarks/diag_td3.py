@@ -18,6 +18,11 @@ policylab's weights and the control's have moved from SB3's. Training is chaotic
 difference in the last float place grows to tens of per cent in a thousand updates), so
 a different algorithm shows as drift beyond the control's, not as drift.
 
+``--gait FILE...``: each saved final policy (``bench_continuous.py --quality ...
+--save-dir DIR``; policylab's ``.pt``, SB3's ``.zip``) run for one greedy episode: its
+return, mean forward velocity, mean cos of the torso's pitch (1 upright, -1 on its back)
+and the share of steps upside down, to tell a flipped gait from a slow upright one.
+
 ``--data``: 2,100 steps of policylab's TD3 (the last 100 learning), each stored
 transition replayed from its own state (MuJoCo's ``set_state``) to compare rewards and
 next observations; then two updates, checking the targets' Polyak step.
@@ -317,6 +322,44 @@ def data(args: argparse.Namespace) -> None:
             )
 
 
+def gait(args: argparse.Namespace) -> None:
+    """How each saved final policy runs: upright or on its back (``--save-dir`` files)."""
+    from stable_baselines3 import TD3 as SB3TD3
+
+    torch.set_num_threads(1)
+    print(
+        "| policy | return | mean forward velocity | mean cos(pitch) | share of steps "
+        "upside down |\n|---|---:|---:|---:|---:|"
+    )
+    for path in args.gait:
+        if path.endswith(".zip"):
+            model = SB3TD3.load(path, device="cpu")
+
+            def act(obs: np.ndarray, model: Any = model) -> np.ndarray:
+                return model.predict(obs, deterministic=True)[0]
+        else:
+            agent = pl.deep.TD3.load(path)
+
+            def act(obs: np.ndarray, agent: Any = agent) -> np.ndarray:
+                return agent.predict(obs, deterministic=True)
+
+        env = gym.make(ENV_ID)
+        obs, _ = env.reset(seed=1000)
+        data = env.unwrapped.data
+        ret, vx, pitch, done = 0.0, [], [], False
+        while not done:
+            obs, r, term, trunc, _ = env.step(act(obs))
+            ret += float(r)
+            vx.append(float(data.qvel[0]))  # rootx velocity
+            pitch.append(float(data.qpos[2]))  # rooty: 0 upright, +-pi on its back
+            done = term or trunc
+        c = np.cos(pitch)
+        print(
+            f"| {Path(path).name} | {ret:.1f} | {np.mean(vx):.2f} | {c.mean():.2f} "
+            f"| {np.mean(c < 0):.2f} |"
+        )
+
+
 def _torch_init(agent: Any, seed: int) -> None:
     """Re-initialise the actor, the critics and their targets as ``nn.Linear`` does."""
     torch.manual_seed(seed)
@@ -482,6 +525,10 @@ def main() -> None:
     p.add_argument(
         "--gap", action="store_true", help="the 200k curves' table and the gap's p-values"
     )
+    p.add_argument(
+        "--gait", nargs="+", metavar="FILE",
+        help="saved final policies (bench_continuous.py --save-dir): upright or flipped",
+    )  # fmt: skip
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--steps", type=int, default=100_000)
     p.add_argument("--results", help="append the curve (--init, --sb3-curve) to this file")
@@ -496,10 +543,12 @@ def main() -> None:
         data(args)
     elif args.trajectory:
         trajectory(args)
+    elif args.gait:
+        gait(args)
     elif args.gap:
         gap(args)
     else:
-        p.error("give --update, --trajectory, --data, --init, --sb3-curve or --gap")
+        p.error("give --update, --trajectory, --data, --init, --sb3-curve, --gait or --gap")
 
 
 if __name__ == "__main__":

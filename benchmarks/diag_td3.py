@@ -205,7 +205,7 @@ def update(args: argparse.Namespace) -> None:
 
 def _weights(agent: Any) -> dict[str, list[torch.Tensor]]:
     """Each network's weight matrices, as (in, out) for the critics, whichever library."""
-    if hasattr(agent, "critic_optimizer"):  # policylab
+    if isinstance(agent, pl.deep.TD3):
         return {
             "actor": [lin.weight for lin in _linears(agent.actor.net)],
             "actor target": [lin.weight for lin in _linears(agent.actor_target.net)],
@@ -326,29 +326,25 @@ def gait(args: argparse.Namespace) -> None:
     """How each saved final policy runs: upright or on its back (``--save-dir`` files)."""
     from stable_baselines3 import TD3 as SB3TD3
 
+    from bench_continuous import _SB3Predictor
+
     torch.set_num_threads(1)
     print(
         "| policy | return | mean forward velocity | mean cos(pitch) | share of steps "
         "upside down |\n|---|---:|---:|---:|---:|"
     )
     for path in args.gait:
-        if path.endswith(".zip"):
-            model = SB3TD3.load(path, device="cpu")
-
-            def act(obs: np.ndarray, model: Any = model) -> np.ndarray:
-                return model.predict(obs, deterministic=True)[0]
-        else:
-            agent = pl.deep.TD3.load(path)
-
-            def act(obs: np.ndarray, agent: Any = agent) -> np.ndarray:
-                return agent.predict(obs, deterministic=True)
-
+        policy: Any = (
+            _SB3Predictor(SB3TD3.load(path, device="cpu"))
+            if path.endswith(".zip")
+            else pl.deep.TD3.load(path)
+        )
         env = gym.make(ENV_ID)
         obs, _ = env.reset(seed=1000)
         data = env.unwrapped.data
         ret, vx, pitch, done = 0.0, [], [], False
         while not done:
-            obs, r, term, trunc, _ = env.step(act(obs))
+            obs, r, term, trunc, _ = env.step(policy.predict(obs, deterministic=True))
             ret += float(r)
             vx.append(float(data.qvel[0]))  # rootx velocity
             pitch.append(float(data.qpos[2]))  # rooty: 0 upright, +-pi on its back

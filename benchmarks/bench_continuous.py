@@ -615,24 +615,45 @@ def summarize(args: argparse.Namespace) -> None:
             f"| [{lo:.1f}, {hi:.1f}] | {', '.join(f'{x:.1f}' for x in rets)} |"
         )
     print(
-        "\nWhere both libraries have runs: the difference of the means, the probability of"
+        "\nWhere both libraries have runs: the difference of the means and its 95% bootstrap"
+        " interval (each library's seeds resampled on their own), the probability of"
         " improvement P(policylab > SB3) over seed pairs (ties count half), and exact"
         " one-sided permutation p-values of each library's mean being above the other's"
         " (all splits of the pooled returns).\n\n"
         "| env | algorithm | env steps | seeds (policylab, SB3) | policylab - SB3 "
-        "| P(policylab > SB3) | p, policylab above | p, SB3 above |\n"
-        "|---|---|---:|---|---:|---:|---:|---:|"
+        "| 95% bootstrap interval | P(policylab > SB3) | p, policylab above | p, SB3 above |\n"
+        "|---|---|---:|---|---:|---|---:|---:|---:|"
     )
     for (env, algo, lib, steps), ours in sorted(runs.items()):
         theirs = runs.get((env, algo, "SB3", steps))
         if lib != "policylab" or not theirs:
             continue
         improvement = pl.stats.probability_of_improvement(ours, theirs)
+        lo, hi = difference_ci(ours, theirs)
         print(
             f"| {env} | {algo} | {steps:,} | {len(ours)}, {len(theirs)} "
-            f"| {np.mean(ours) - np.mean(theirs):+.1f} | {improvement:.2f} "
+            f"| {np.mean(ours) - np.mean(theirs):+.1f} | [{lo:+.1f}, {hi:+.1f}] "
+            f"| {improvement:.2f} "
             f"| {_p_cell(exact_p(ours, theirs))} | {_p_cell(exact_p(theirs, ours))} |"
         )
+
+
+def difference_ci(
+    ours: list[float], theirs: list[float], reps: int = 2000, seed: int = 0
+) -> tuple[float, float]:
+    """95% percentile bootstrap interval of mean(ours) - mean(theirs).
+
+    Each library's seeds are resampled with replacement on their own (the two are
+    independent runs, not pairs), B = ``reps`` times; the interval is the 2.5% and 97.5%
+    quantiles of the B differences of the resampled means.
+    """
+    import policylab as pl
+
+    rng = np.random.default_rng(seed)
+    a = pl.stats.bootstrap_distribution(np.array(ours), pl.stats.mean, reps=reps, seed=rng)
+    b = pl.stats.bootstrap_distribution(np.array(theirs), pl.stats.mean, reps=reps, seed=rng)
+    lo, hi = np.quantile(a - b, [0.025, 0.975])
+    return float(lo), float(hi)
 
 
 def _p_cell(p: float | None) -> str:

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
 
 SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_continuous.py"
@@ -47,6 +48,23 @@ def test_exact_p_counts_every_split_of_the_pooled_returns(bench: ModuleType) -> 
     # are those whose pair sums to 6 or more: {5,1} {5,2} {5,3} {5,4} {2,4} {3,4} of 10
     assert bench.exact_p([5.0, 1.0], [2.0, 3.0, 4.0]) == pytest.approx(6 / 10)
     assert bench.exact_p([1.0], [2.0, 3.0]) is None
+
+
+def test_difference_ci_resamples_each_library_on_its_own(bench: ModuleType) -> None:
+    # SB3 constant at 5: the difference is policylab's resampled mean minus 5, whose
+    # lowest and highest values (1 and 3, each with probability 1/4 for two runs) are
+    # the 2.5% and 97.5% quantiles
+    assert bench.difference_ci([6.0, 8.0], [5.0, 5.0, 5.0]) == pytest.approx((1.0, 3.0))
+    # both constant: the interval is the one difference
+    assert bench.difference_ci([2.0, 2.0], [7.0, 7.0]) == pytest.approx((-5.0, -5.0))
+    # the other way round, the same interval negated, up to resampling noise; same seed,
+    # same interval
+    ours, theirs = [1.0, 4.0, 2.0, 8.0], [3.0, 5.0, 9.0]
+    lo, hi = bench.difference_ci(ours, theirs, reps=4000)
+    assert lo < np.mean(ours) - np.mean(theirs) < hi
+    assert bench.difference_ci(ours, theirs, reps=4000) == (lo, hi)
+    back = bench.difference_ci(theirs, ours, reps=4000)
+    assert back == pytest.approx((-hi, -lo), abs=0.35)
 
 
 def test_a_seed_listed_twice_is_refused_naming_both_lines(

@@ -473,7 +473,7 @@ def sb3_curve(args: argparse.Namespace) -> None:
 
 def gap(args: argparse.Namespace) -> None:
     """The 200k curves' table and the permutation tests of the TD3 gap, from stored results."""
-    from bench_continuous import exact_p, read_runs
+    from bench_continuous import difference_ci, exact_p, read_runs
 
     results = Path(__file__).parent / "results"
     curves = [json.loads(x) for x in (results / "td3-curves-200k.jsonl").read_text().splitlines()]
@@ -500,9 +500,11 @@ def gap(args: argparse.Namespace) -> None:
         ("and policylab's curve runs", sb3_all, ours_all),
     ):
         p = exact_p(sb3, ours)
+        lo, hi = difference_ci(ours, sb3)
         print(
             f"{label}: SB3 {np.mean(sb3):.1f} ({len(sb3)}) against policylab {np.mean(ours):.1f} "
-            f"({len(ours)}); exact one-sided permutation p = {p:.3f}"
+            f"({len(ours)}); policylab - SB3 {np.mean(ours) - np.mean(sb3):+.1f}, 95% bootstrap "
+            f"interval [{lo:+.1f}, {hi:+.1f}]; exact one-sided permutation p = {p:.3f}"
         )
 
 

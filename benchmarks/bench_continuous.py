@@ -660,26 +660,45 @@ def _p_cell(p: float | None) -> str:
     return "-" if p is None else f"{p:.3f}"
 
 
+def _subset_sums(values: np.ndarray) -> list[np.ndarray]:
+    """The sums of every subset of ``values``, sorted, listed by subset size (0 to len)."""
+    masks = np.arange(2 ** len(values))
+    members = (masks[:, None] >> np.arange(len(values))) & 1
+    sums, sizes = members @ values, members.sum(axis=1)
+    return [np.sort(sums[sizes == j]) for j in range(len(values) + 1)]
+
+
 def exact_p(higher: list[float], lower: list[float]) -> float | None:
     """One-sided exact permutation p-value of mean(higher) - mean(lower) under no difference.
 
-    The share of all splits of the pooled values into groups of these sizes whose
-    difference of means is at least the observed one (scipy's ``permutation_test``);
-    None while a group has fewer than 2 values.
+    The share of all C(n, k) splits of the n pooled values into a group of k = len(higher)
+    and one of the rest whose difference of means is at least the observed one (what
+    scipy's ``permutation_test`` with ``n_resamples=inf`` gives); None while a group has
+    fewer than 2 values. With both sizes fixed, the difference of means
+    S/k - (T - S)/(n - k) grows with the first group's sum S (T the pooled total), so the
+    p-value counts the k-subsets with a sum of at least the observed one, within a
+    tolerance of 1e-9 of the values' scale for rounding. They are counted meet in the
+    middle, without listing the splits: the pooled values are cut in two halves A and B,
+    every subset sum of each half is listed by size (2^(n/2) each), and for each j the
+    pairs of a j-subset of A and a (k - j)-subset of B whose sums add up to at least S
+    are counted by a binary search in B's sorted sums. 14 runs against 14 (40 million
+    splits) take milliseconds; at most 40 pooled values.
     """
-    from scipy.stats import permutation_test
+    from math import comb
 
     if min(len(higher), len(lower)) < 2:
         return None
-
-    def diff(x: np.ndarray, y: np.ndarray, axis: int) -> np.ndarray:
-        return np.mean(x, axis=axis) - np.mean(y, axis=axis)  # type: ignore[no-any-return]
-
-    res = permutation_test(
-        (higher, lower), diff, permutation_type="independent", alternative="greater",
-        n_resamples=np.inf, vectorized=True,
-    )  # fmt: skip
-    return float(res.pvalue)
+    pooled = np.asarray([*higher, *lower], dtype=np.float64)
+    n, k = len(pooled), len(higher)
+    if n > 40:
+        raise ValueError(f"exact_p lists 2^(n/2) subset sums: at most 40 values, got {n}")
+    threshold = float(pooled[:k].sum()) - 1e-9 * max(1.0, float(np.abs(pooled).sum()))
+    first, second = _subset_sums(pooled[: n // 2]), _subset_sums(pooled[n // 2 :])
+    count = 0
+    for j in range(max(0, k - len(second) + 1), min(k, len(first) - 1) + 1):
+        a, b = first[j], second[k - j]
+        count += int(len(a) * len(b) - np.searchsorted(b, threshold - a, side="left").sum())
+    return count / comb(n, k)
 
 
 def walker(args: argparse.Namespace) -> None:

@@ -50,6 +50,37 @@ def test_exact_p_counts_every_split_of_the_pooled_returns(bench: ModuleType) -> 
     assert bench.exact_p([1.0], [2.0, 3.0]) is None
 
 
+def test_exact_p_equals_scipys_enumeration_of_every_split(bench: ModuleType) -> None:
+    # the meet-in-the-middle count against scipy listing all C(n, k) splits, on groups
+    # of 2 to 7 values, with many ties (small integers) and without (wide normals)
+    from scipy.stats import permutation_test
+
+    def diff(x: np.ndarray, y: np.ndarray, axis: int) -> np.ndarray:
+        return np.mean(x, axis=axis) - np.mean(y, axis=axis)  # type: ignore[no-any-return]
+
+    rng = np.random.default_rng(3)
+    for case in range(60):
+        k, m = (int(v) for v in rng.integers(2, 8, size=2))
+        values = rng.integers(0, 5, size=k + m) if case % 2 else rng.normal(0, 1e3, k + m)
+        higher, lower = [float(v) for v in values[:k]], [float(v) for v in values[k:]]
+        expected = permutation_test(
+            (higher, lower), diff, permutation_type="independent", alternative="greater",
+            n_resamples=np.inf, vectorized=True,
+        ).pvalue  # fmt: skip
+        assert bench.exact_p(higher, lower) == pytest.approx(expected, abs=1e-12), case
+
+
+def test_exact_p_counts_forty_million_splits_and_refuses_more_than_40(bench: ModuleType) -> None:
+    # 14 against 14 with the groups 0..13 and 14..27: the first group's sum 91 is the
+    # smallest of any 14-subset, so every split is at least as high in the other order
+    # and exactly one (the observed) as low
+    low, high = [float(v) for v in range(14)], [float(v) for v in range(14, 28)]
+    assert bench.exact_p(high, low) == pytest.approx(1 / 40_116_600)
+    assert bench.exact_p(low, high) == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="at most 40 values, got 41"):
+        bench.exact_p([0.0] * 20, [1.0] * 21)
+
+
 def test_difference_ci_resamples_each_library_on_its_own(bench: ModuleType) -> None:
     # SB3 constant at 5: the difference is policylab's resampled mean minus 5, whose
     # lowest and highest values (1 and 3, each with probability 1/4 for two runs) are

@@ -701,6 +701,81 @@ def exact_p(higher: list[float], lower: list[float]) -> float | None:
     return count / comb(n, k)
 
 
+@dataclass(frozen=True)
+class PlannedComparison:
+    """A comparison of two libraries fixed before its runs, read once when all are in.
+
+    A p value read again each time runs are added rejects more often than its level when
+    nothing differs; a plan fixed in advance (its env, algorithm, budget, seeds and
+    rule) gives one clean test. ``not worse`` is a non-inferiority rule: the lower end
+    of the 95% bootstrap interval of mean(policylab) - mean(SB3) above
+    -``margin`` x mean(SB3); ``behind`` is the exact one-sided permutation test of SB3's
+    mean above policylab's at the 5% level. Both are reported, so a run that is behind
+    by less than the margin says so.
+    """
+
+    env: str
+    algo: str
+    steps: int
+    seeds: tuple[int, ...]
+    margin: float
+    fixed: str  # when the plan was fixed, before any of its returns was known
+
+    def read(self, records: list[dict[str, Any]]) -> str:
+        """The plan's result from ``read_records`` output, or how many runs are still out."""
+        got: dict[str, dict[int, float]] = {"policylab": {}, "SB3": {}}
+        for r in records:
+            if (
+                r["env"] == self.env
+                and r["algo"].upper() == self.algo.upper()
+                and int(r["steps"]) == self.steps
+                and r["lib"] in got
+                and int(r["seed"]) in self.seeds
+            ):
+                got[r["lib"]][int(r["seed"])] = float(r["mean_return"])
+        n = len(self.seeds)
+        head = (
+            f"planned test ({self.env} {self.algo.upper()} at {self.steps:,} steps, seeds "
+            f"{self.seeds[0]} to {self.seeds[-1]}, fixed {self.fixed})"
+        )
+        if any(len(v) < n for v in got.values()):
+            return (
+                f"{head}: {len(got['policylab'])} of {n} policylab runs and {len(got['SB3'])} "
+                f"of {n} SB3 runs are in; it is read once, when all {2 * n} are"
+            )
+        ours = [got["policylab"][s] for s in self.seeds]
+        sb3 = [got["SB3"][s] for s in self.seeds]
+        p = exact_p(sb3, ours)
+        assert p is not None  # a plan has at least 2 seeds
+        lo, hi = difference_ci(ours, sb3)
+        bound = -self.margin * float(np.mean(sb3))
+        not_worse = lo > bound
+        behind = p < 0.05
+        verdict = (
+            f"{'not worse' if not_worse else 'not shown not worse'} (interval's lower end "
+            f"{lo:+.1f} {'above' if not_worse else 'at or below'} {bound:+.1f}, "
+            f"-{self.margin:.0%} of SB3's mean); SB3 "
+            f"{'ahead' if behind else 'not shown ahead'} at the 5% level (p = {p:.3f})"
+        )
+        return (
+            f"{head}: SB3 {np.mean(sb3):.1f} against policylab {np.mean(ours):.1f}, "
+            f"policylab - SB3 {np.mean(ours) - np.mean(sb3):+.1f}, 95% bootstrap interval "
+            f"[{lo:+.1f}, {hi:+.1f}]: {verdict}"
+        )
+
+
+#: HalfCheetah-v5 TD3's test, fixed after the table's 14 runs each: 20 new seeds of both
+#: libraries, "not worse" within 10% of SB3's mean.
+TD3_CHEETAH_PLAN = PlannedComparison(
+    env="HalfCheetah-v5",
+    algo="td3",
+    steps=200_000,
+    seeds=tuple(range(16, 36)),
+    margin=0.10,
+    fixed="6 December 2026",
+)
+
+
 def walker(args: argparse.Namespace) -> None:
     """Forward velocity, episode lengths and returns of a walking run; its learning curve."""
     import csv

@@ -36,7 +36,10 @@ values (see ``_Curve``); one JSON line per run is appended to ``--results``.
 
 ``--gap``: from the stored results (``benchmarks/results``), the table of the 200k
 curves with their probes at 200k, and exact one-sided permutation tests of SB3's mean
-return above policylab's (the quality table's seeds, then with the curves' 200k points).
+return above policylab's (the quality table's seeds, then with the curves' 200k points);
+these are read again as runs are added, so last the test planned in advance
+(``bench_continuous.TD3_CHEETAH_PLAN``: seeds 16 to 35 of both libraries), or how many
+of its runs are still out.
 
 ``--sb3-curve --seed S --steps N``: the same learning curve of SB3's TD3, trained as in
 the quality table (``bench_continuous._sb3_model``).
@@ -473,7 +476,7 @@ def sb3_curve(args: argparse.Namespace) -> None:
 
 def gap(args: argparse.Namespace) -> None:
     """The 200k curves' table and the permutation tests of the TD3 gap, from stored results."""
-    from bench_continuous import difference_ci, exact_p, read_runs
+    from bench_continuous import TD3_CHEETAH_PLAN, difference_ci, exact_p, read_records, read_runs
 
     results = Path(__file__).parent / "results"
     curves = [json.loads(x) for x in (results / "td3-curves-200k.jsonl").read_text().splitlines()]
@@ -506,6 +509,7 @@ def gap(args: argparse.Namespace) -> None:
             f"({len(ours)}); policylab - SB3 {np.mean(ours) - np.mean(sb3):+.1f}, 95% bootstrap "
             f"interval [{lo:+.1f}, {hi:+.1f}]; exact one-sided permutation p = {p:.3f}"
         )
+    print(TD3_CHEETAH_PLAN.read(read_records([results / "quality-200k.jsonl"])))
 
 
 def main() -> None:

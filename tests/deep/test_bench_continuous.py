@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pytest
@@ -170,3 +171,55 @@ def test_a_second_fill_on_the_same_file_is_refused(tmp_path: Path) -> None:
         )  # fmt: skip
     assert out.returncode == 1
     assert f"another --fill is running on {results}" in out.stderr
+
+
+def _plan(bench: ModuleType) -> Any:
+    return bench.PlannedComparison(
+        env="HalfCheetah-v5", algo="td3", steps=200_000, seeds=(3, 4, 5, 6), margin=0.10,
+        fixed="today",
+    )  # fmt: skip
+
+
+def _records(lib: str, returns: dict[int, float], **run: Any) -> list[dict[str, Any]]:
+    base = dict(env="HalfCheetah-v5", algo="td3", lib=lib, steps=200_000) | run
+    return [base | dict(seed=s, mean_return=r) for s, r in returns.items()]
+
+
+def test_a_planned_comparison_gives_no_result_until_every_planned_run_is_in(
+    bench: ModuleType,
+) -> None:
+    records = (
+        _records("SB3", {3: 10.0, 4: 11.0, 5: 12.0, 6: 13.0})
+        + _records("policylab", {3: 1.0, 4: 2.0, 5: 3.0})
+        # not the plan's: another seed, budget, env and algorithm
+        + _records("policylab", {7: 1.0})
+        + _records("policylab", {6: 1.0}, steps=100_000)
+        + _records("policylab", {6: 1.0}, env="Hopper-v5")
+        + _records("policylab", {6: 1.0}, algo="sac")
+    )
+    out = _plan(bench).read(records)
+    assert "3 of 4 policylab runs and 4 of 4 SB3 runs are in" in out
+    assert "p =" not in out and "interval" not in out
+
+
+def test_a_planned_comparison_reports_both_rules_once_complete(bench: ModuleType) -> None:
+    plan, seeds = _plan(bench), (3, 4, 5, 6)
+    sb3 = _records("SB3", dict(zip(seeds, (1000.0, 1001.0, 1002.0, 1003.0), strict=True)))
+
+    def read(ours: tuple[float, ...]) -> str:
+        return str(plan.read(sb3 + _records("policylab", dict(zip(seeds, ours, strict=True)))))
+
+    # far behind: every split's test is at its smallest p = 1 / C(8, 4), and the interval
+    # is far below -10% of SB3's mean (-100.15)
+    far = read((500.0, 501.0, 502.0, 503.0))
+    assert "not shown not worse" in far and "SB3 ahead at the 5% level (p = 0.014)" in far
+    assert "-100.2, -10% of SB3's mean" in far
+    # behind on every seed, but by 20 of 1,001.5: SB3 is ahead, and policylab not worse
+    near = read((980.0, 981.0, 982.0, 983.0))
+    assert near.count("not worse") == 1 and "above -100.2" in near
+    assert "SB3 ahead at the 5% level (p = 0.014)" in near
+    assert "policylab - SB3 -20.0" in near
+    # level: not worse, and SB3 not shown ahead
+    level = read((1003.0, 1002.0, 1000.0, 1001.0))
+    assert "not worse (interval's lower end" in level and "not shown not worse" not in level
+    assert "SB3 not shown ahead" in level

@@ -82,6 +82,42 @@ def test_exact_p_counts_forty_million_splits_and_refuses_more_than_40(bench: Mod
         bench.exact_p([0.0] * 20, [1.0] * 21)
 
 
+def test_permutation_p_is_exact_p_up_to_40_pooled_values(bench: ModuleType) -> None:
+    rng = np.random.default_rng(5)
+    values = [float(v) for v in rng.normal(7000, 800, 40)]
+    assert bench.permutation_p(values[:20], values[20:]) == (
+        bench.exact_p(values[:20], values[20:]),
+        True,
+    )
+    assert bench.permutation_p([1.0], [2.0, 3.0]) == (None, True)
+
+
+def test_permutation_p_estimates_beyond_40_within_its_standard_error(bench: ModuleType) -> None:
+    # 0/1 returns, 21 against 21: a split's difference of means is at least the observed
+    # one exactly when its first group holds at least as many ones, so the exact p-value
+    # is a hypergeometric tail (21 ones among 42, 14 or more of them in a group of 21)
+    from scipy.stats import hypergeom
+
+    higher, lower = [1.0] * 14 + [0.0] * 7, [1.0] * 7 + [0.0] * 14
+    exact = float(hypergeom.sf(13, 42, 21, 21))
+    p, is_exact = bench.permutation_p(higher, lower, resamples=200_000, seed=1)
+    assert not is_exact and p is not None
+    assert abs(p - exact) < 4 * np.sqrt(exact * (1 - exact) / 200_000), (p, exact)
+    # same seed, same estimate; another seed draws other splits
+    assert bench.permutation_p(higher, lower, resamples=200_000, seed=1) == (p, False)
+    assert bench.permutation_p(higher, lower, resamples=200_000, seed=2)[0] != p
+    # (1 + b) / (1 + B): the one most extreme split among C(42, 21) is almost never drawn,
+    # and the estimate is then 1 / (1 + B), never 0; the least extreme is always matched
+    assert bench.permutation_p([1.0] * 21, [0.0] * 21, resamples=999) == (1 / 1000, False)
+    assert bench.permutation_p([0.0] * 21, [1.0] * 21, resamples=999) == (1.0, False)
+
+
+def test_p_cells_mark_an_estimate(bench: ModuleType) -> None:
+    assert bench._p_cell((None, True)) == "-"
+    assert bench._p_cell((0.0684, True)) == "0.068"
+    assert bench._p_cell((0.0684, False)) == "≈0.068"
+
+
 def test_difference_ci_resamples_each_library_on_its_own(bench: ModuleType) -> None:
     # SB3 constant at 5: the difference is policylab's resampled mean minus 5, whose
     # lowest and highest values (1 and 3, each with probability 1/4 for two runs) are

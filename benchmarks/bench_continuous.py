@@ -672,6 +672,11 @@ def _subset_sums(values: np.ndarray) -> list[np.ndarray]:
     return [np.sort(sums[sizes == j]) for j in range(len(values) + 1)]
 
 
+def _first_sum_floor(pooled: np.ndarray, k: int) -> float:
+    """The observed first group's sum less 1e-9 of the values' scale, for rounding."""
+    return float(pooled[:k].sum()) - 1e-9 * max(1.0, float(np.abs(pooled).sum()))
+
+
 def exact_p(higher: list[float], lower: list[float]) -> float | None:
     """One-sided exact permutation p-value of mean(higher) - mean(lower) under no difference.
 
@@ -696,7 +701,7 @@ def exact_p(higher: list[float], lower: list[float]) -> float | None:
     n, k = len(pooled), len(higher)
     if n > 40:
         raise ValueError(f"exact_p lists 2^(n/2) subset sums: at most 40 values, got {n}")
-    threshold = float(pooled[:k].sum()) - 1e-9 * max(1.0, float(np.abs(pooled).sum()))
+    threshold = _first_sum_floor(pooled, k)
     first, second = _subset_sums(pooled[: n // 2]), _subset_sums(pooled[n // 2 :])
     count = 0
     for j in range(max(0, k - len(second) + 1), min(k, len(first) - 1) + 1):
@@ -736,7 +741,7 @@ def permutation_p(
         return exact_p(higher, lower), True
     pooled = np.asarray([*higher, *lower], dtype=np.float64)
     k = len(higher)
-    threshold = float(pooled[:k].sum()) - 1e-9 * max(1.0, float(np.abs(pooled).sum()))
+    threshold = _first_sum_floor(pooled, k)
     rng = np.random.default_rng(seed)
     at_least, chunk = 0, 20_000
     for start in range(0, resamples, chunk):

@@ -727,10 +727,11 @@ def permutation_p(
     too many to count that way (36 runs against 36 have C(72, 36), about 4e20), and the
     p-value is estimated from B = ``resamples`` splits drawn uniformly at random (a random
     k-subset of the pooled values as the first group) as (1 + b) / (1 + B), b the drawn
-    splits whose first group's sum is at least the observed one. That estimate never
-    falls below the exact p-value's chance of a false alarm (Phipson and Smyth 2010,
-    "Permutation p-values should never be zero"); its standard error is at most
-    0.5 / sqrt(B), 0.0005 at the default B. Same seed, same estimate.
+    splits whose first group's sum is at least the observed one. Counting the observed
+    split among the drawn ones keeps the estimate a valid p-value: when nothing differs
+    it is at most alpha with probability at most alpha, and it is never 0 (Phipson and
+    Smyth 2010, "Permutation p-values should never be zero"). Its standard error is at
+    most 0.5 / sqrt(B), 0.0005 at the default B. Same seed, same estimate.
 
     Returns:
         ``(p, exact)``: the p-value (None while a group has fewer than 2 values) and
